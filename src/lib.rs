@@ -1,0 +1,25 @@
+//! A data-oriented SIMD ray-packet path tracer for the CS184 "PathTracer-1" scene format.
+//!
+//! Data flows one way, and each module imports only those to its left:
+//!
+//! ```text
+//! scene file -> scene (model + COLLADA loader + camera)
+//!            -> geometry (SoA triangles, Möller-Trumbore, spheres)
+//!            -> accel (binned-SAH BVH, flat nodes, single-ray and packet traversal)
+//!            -> wavefront (generate -> extend -> shade -> shadow -> accumulate)
+//!            -> film (linear accumulator) -> image file (PNG tone-mapped, EXR linear)
+//! ```
+
+pub mod accel;
+pub mod error;
+pub mod film;
+pub mod geometry;
+pub mod integrator;
+pub mod math;
+pub mod procedural;
+pub mod render;
+pub mod sampler;
+pub mod scene;
+pub mod wavefront;
+
+pub use error::{Error, Result};

@@ -1,0 +1,1 @@
+//! Render driver (to be written).

@@ -1,0 +1,1 @@
+//! COLLADA 1.4.1 + CGL loader (to be written).

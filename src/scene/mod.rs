@@ -1,0 +1,113 @@
+//! The scene model: plain data that rendering reads, and nothing else (no XML, no accel).
+//!
+//! All coordinates are world space, Y up (the loader applies the up-axis fix and node
+//! transforms). Triangles from every mesh are concatenated into one indexed list so the
+//! acceleration structure sees a single array.
+
+pub mod camera;
+pub mod collada;
+mod light;
+mod material;
+
+pub use camera::{Camera, CameraDesc};
+pub use light::Light;
+pub use material::Material;
+
+use crate::math::{Aabb, Vec3};
+
+/// An analytic sphere (CGL `sphere/radius`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sphere {
+    pub center: Vec3,
+    pub radius: f32,
+    pub material: u32,
+}
+
+#[derive(Debug, Clone, Default)]
+pub struct Scene {
+    /// World-space vertex positions of all meshes.
+    pub positions: Vec<Vec3>,
+    /// Per-vertex shading normals (unit length): the area-weighted sum of the normals of the
+    /// faces around each vertex, as the course renderer makes them.
+    pub normals: Vec<Vec3>,
+    /// Vertex indices of each triangle, counter-clockwise as in the file.
+    pub triangles: Vec<[u32; 3]>,
+    /// Material index of each triangle (parallel to `triangles`).
+    pub triangle_materials: Vec<u32>,
+    pub spheres: Vec<Sphere>,
+    pub materials: Vec<Material>,
+    pub lights: Vec<Light>,
+    pub camera: CameraDesc,
+    /// Non-fatal problems met while loading (e.g. a skipped spot light), printed by the CLI.
+    pub warnings: Vec<String>,
+}
+
+impl Scene {
+    /// Bounding box of all geometry (meshes and spheres, not lights), as the camera frames it.
+    pub fn bounds(&self) -> Aabb {
+        let tris = self
+            .triangles
+            .iter()
+            .flat_map(|t| t.iter())
+            .fold(Aabb::EMPTY, |b, &i| b.grow(self.positions[i as usize]));
+        self.spheres.iter().fold(tris, |b, s| {
+            b.grow(s.center - Vec3::splat(s.radius))
+                .grow(s.center + Vec3::splat(s.radius))
+        })
+    }
+
+    /// The three corners of triangle `i`.
+    #[inline]
+    pub fn triangle(&self, i: usize) -> [Vec3; 3] {
+        let [a, b, c] = self.triangles[i];
+        [
+            self.positions[a as usize],
+            self.positions[b as usize],
+            self.positions[c as usize],
+        ]
+    }
+
+    /// Whether any material is emissive (emissive geometry seen by camera and BSDF rays).
+    pub fn has_emissive_geometry(&self) -> bool {
+        self.materials
+            .iter()
+            .any(|m| matches!(m, Material::Emission { .. }))
+    }
+
+    /// Checks the invariants every consumer relies on: indices in range, finite numbers.
+    /// The loader calls this last, so a `Scene` from the loader is always valid.
+    pub fn validate(&self) -> crate::Result<()> {
+        let n = self.positions.len() as u32;
+        if self.normals.len() != self.positions.len() {
+            crate::bail!("{} normals for {} vertices", self.normals.len(), n);
+        }
+        if self.triangle_materials.len() != self.triangles.len() {
+            crate::bail!("material list does not match the triangle list");
+        }
+        if let Some(p) = self.positions.iter().find(|p| !p.is_finite()) {
+            crate::bail!("vertex position {p} is not finite");
+        }
+        for (i, t) in self.triangles.iter().enumerate() {
+            if t.iter().any(|&v| v >= n) {
+                crate::bail!("triangle {i} refers to vertex {t:?} but there are only {n} vertices");
+            }
+        }
+        let nm = self.materials.len() as u32;
+        let bad_mat = self
+            .triangle_materials
+            .iter()
+            .chain(self.spheres.iter().map(|s| &s.material))
+            .any(|&m| m >= nm);
+        if bad_mat {
+            crate::bail!("a primitive refers to a material that does not exist");
+        }
+        if let Some(s) = self
+            .spheres
+            .iter()
+            .find(|s| !s.center.is_finite() || !s.radius.is_finite() || s.radius <= 0.0)
+        {
+            crate::bail!("sphere at {} has invalid radius {}", s.center, s.radius);
+        }
+        Ok(())
+    }
+}
