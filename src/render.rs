@@ -1,1 +1,166 @@
-//! Render driver (to be written).
+//! The render driver: scene + accel + config -> linear image, with statistics and progress.
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
+
+use rayon::prelude::*;
+
+use crate::accel::Accel;
+use crate::integrator::Integrator;
+use crate::math::Vec3;
+use crate::scene::{Camera, Scene};
+use crate::wavefront::{self, RenderContext, RenderStats, Tile, Workspace};
+
+/// Everything a render needs besides the scene, with the course's defaults.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RenderConfig {
+    pub width: u32,
+    pub height: u32,
+    /// Samples per pixel (`-s`).
+    pub spp: u32,
+    /// Samples per area light (`-l`).
+    pub light_samples: u32,
+    /// Maximum ray depth (`-m`).
+    pub max_depth: u32,
+    /// Adaptive sampling (`-a batch tolerance`).
+    pub adaptive: Option<(u32, f32)>,
+    /// Worker threads (`-t`); 0 = all cores.
+    pub threads: usize,
+    pub seed: u64,
+    pub integrator: Integrator,
+    /// Print a progress line on stderr for renders longer than a second.
+    pub progress: bool,
+}
+
+impl Default for RenderConfig {
+    fn default() -> Self {
+        RenderConfig {
+            width: 800,
+            height: 600,
+            spp: 1,
+            light_samples: 1,
+            max_depth: 1,
+            adaptive: None,
+            threads: 0,
+            seed: 0,
+            integrator: Integrator::Normals,
+            progress: false,
+        }
+    }
+}
+
+/// A rendered image (linear radiance, row-major, row 0 at the top) and how it was made.
+pub struct RenderOutput {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<Vec3>,
+    pub stats: RenderStats,
+    pub time: Duration,
+}
+
+/// Renders `scene` through `accel` as `config` says.
+pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Result<RenderOutput> {
+    let bounds = scene.bounds();
+    let camera = Camera::new(&scene.camera, bounds, config.width, config.height);
+    let lights = config.integrator.light_set(scene);
+    let ctx = RenderContext {
+        scene,
+        accel,
+        camera: &camera,
+        integrator: &config.integrator,
+        lights: &lights,
+        spp: config.spp,
+        light_samples: config.light_samples,
+        max_depth: config.max_depth,
+        seed: config.seed,
+        scene_epsilon: 1e-5 * bounds.diagonal().max(f32::MIN_POSITIVE),
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(config.threads)
+        .build()
+        .map_err(|e| crate::Error::new(format!("cannot start {} threads: {e}", config.threads)))?;
+    let tiles = wavefront::tiles(config.width, config.height);
+    let done = AtomicUsize::new(0);
+    let start = Instant::now();
+    let (results, time): (Vec<(Vec<Vec3>, RenderStats)>, Duration) = std::thread::scope(|s| {
+        if config.progress {
+            s.spawn(|| report_progress(&done, tiles.len(), start));
+        }
+        let results = pool.install(|| {
+            tiles
+                .par_iter()
+                .map_init(Workspace::default, |ws, &tile| {
+                    let r = render_one_tile(&ctx, tile, ws);
+                    done.fetch_add(1, Ordering::Relaxed);
+                    r
+                })
+                .collect()
+        });
+        let time = start.elapsed();
+        done.store(usize::MAX, Ordering::Relaxed);
+        (results, time)
+    });
+
+    let mut pixels = vec![Vec3::ZERO; (config.width * config.height) as usize];
+    let mut stats = RenderStats::default();
+    for (tile, (tile_pixels, tile_stats)) in tiles.iter().zip(&results) {
+        copy_tile(&mut pixels, config.width, tile, tile_pixels);
+        stats.add(tile_stats);
+    }
+    Ok(RenderOutput {
+        width: config.width,
+        height: config.height,
+        pixels,
+        stats,
+        time,
+    })
+}
+
+fn render_one_tile(
+    ctx: &RenderContext,
+    tile: Tile,
+    ws: &mut Workspace,
+) -> (Vec<Vec3>, RenderStats) {
+    let mut out = vec![Vec3::ZERO; tile.pixel_count()];
+    let mut stats = RenderStats::default();
+    wavefront::render_tile(ctx, tile, ws, &mut out, &mut stats);
+    (out, stats)
+}
+
+fn copy_tile(image: &mut [Vec3], image_width: u32, tile: &Tile, tile_pixels: &[Vec3]) {
+    for row in 0..tile.height {
+        let src = &tile_pixels[(row * tile.width) as usize..((row + 1) * tile.width) as usize];
+        let dst_start = ((tile.y0 + row) * image_width + tile.x0) as usize;
+        image[dst_start..dst_start + tile.width as usize].copy_from_slice(src);
+    }
+}
+
+/// Prints "Rendering... NN%" on stderr a few times a second once the render has run a second;
+/// stops when `done` is set to `usize::MAX`.
+fn report_progress(done: &AtomicUsize, total: usize, start: Instant) {
+    use std::io::Write;
+    let mut printed = false;
+    let mut last_print = start;
+    loop {
+        std::thread::sleep(Duration::from_millis(10));
+        let d = done.load(Ordering::Relaxed);
+        if d == usize::MAX {
+            break;
+        }
+        if start.elapsed() > Duration::from_secs(1)
+            && last_print.elapsed() > Duration::from_millis(250)
+        {
+            last_print = Instant::now();
+            let pct = 100 * d / total.max(1);
+            eprint!(
+                "\r[PathTracer] Rendering... {pct:3}% ({:.1}s)",
+                start.elapsed().as_secs_f64()
+            );
+            let _ = std::io::stderr().flush();
+            printed = true;
+        }
+    }
+    if printed {
+        eprint!("\r\x1b[2K");
+    }
+}

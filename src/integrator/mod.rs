@@ -1,1 +1,74 @@
-//! (to be written)
+//! Integrators are hooks called by the wavefront's shade stage: given a hit (or a miss) they add
+//! radiance to the path and may queue continuation rays, shadow rays and emission probes. They
+//! never trace rays themselves, so every integrator shares the same queues and traversal.
+
+pub mod bsdf;
+pub mod lights;
+mod path;
+
+pub use lights::LightSet;
+pub use path::DirectLighting;
+
+use crate::math::{Ray, Vec3};
+use crate::wavefront::{PathState, RenderContext, ShadeOutputs, Surface};
+
+/// The closed set of integrators.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Integrator {
+    /// Shading normal as colour 0.5 n + 0.5; misses are black. No secondary rays.
+    Normals,
+    /// Direct lighting (`-m 1`) or path tracing (`-m N`), with the given direct-light estimator.
+    Path(DirectLighting),
+}
+
+impl Integrator {
+    pub fn name(&self) -> &'static str {
+        match self {
+            Integrator::Normals => "normals",
+            Integrator::Path(DirectLighting::Hemisphere) => "hemisphere",
+            Integrator::Path(DirectLighting::LightSampling) => "light",
+            Integrator::Path(DirectLighting::Mis) => "mis",
+        }
+    }
+
+    /// The lights this integrator samples.
+    pub fn light_set(&self, scene: &crate::scene::Scene) -> LightSet {
+        match self {
+            Integrator::Path(DirectLighting::Mis) => LightSet::emissive_geometry(scene),
+            _ => LightSet::course(scene),
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    pub fn shade_hit(
+        &self,
+        ctx: &RenderContext,
+        depth: u32,
+        ray: &Ray,
+        surface: &Surface,
+        path: u32,
+        paths: &mut PathState,
+        out: &mut ShadeOutputs,
+    ) {
+        match *self {
+            Integrator::Normals => {
+                paths.radiance[path as usize] = 0.5 * surface.ns + Vec3::splat(0.5);
+            }
+            Integrator::Path(direct) => {
+                path::shade_hit(direct, ctx, depth, ray, surface, path, paths, out)
+            }
+        }
+    }
+
+    /// Rays that leave the scene see black: scene lights (the sky included) are not geometry
+    /// and are reached only by light sampling (SCENE_FORMAT.md).
+    pub fn shade_miss(
+        &self,
+        _ctx: &RenderContext,
+        _depth: u32,
+        _ray: &Ray,
+        _path: u32,
+        _paths: &mut PathState,
+    ) {
+    }
+}

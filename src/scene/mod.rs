@@ -6,6 +6,7 @@
 
 pub mod camera;
 pub mod collada;
+pub mod info;
 mod light;
 mod material;
 

@@ -1,1 +1,194 @@
-//! (to be written)
+//! The wavefront renderer: every integrator is a configuration of the same stages.
+//!
+//! The image is cut into tiles (`TILE` x `TILE` pixels); rayon hands whole tiles to threads, and
+//! each thread runs the stage loop below over its tile with its own queues. A path's random
+//! numbers depend only on (seed, pixel, sample), and each pixel sums its samples in a fixed
+//! order, so the image is bit-identical for any thread count.
+//!
+//! ```text
+//!  generate ──> RayQueue ──> extend ──> hits ──> shade ──┬──> next RayQueue (bounces) ─┐
+//!  (camera)         ^        (closest hit)               └──> ShadowQueue ──> shadow   │
+//!                   └──────────────────────────────────────── (any hit) ──> PathState  │
+//!                   └──────────────────────────────────────────────────────────────────┘
+//!  accumulate: PathState radiance ──> tile pixels (film)
+//! ```
+//!
+//! Queue sizes: a tile of 16 x 16 pixels with `spp` samples holds at most 256 x `spp` paths;
+//! samples are processed in batches of at most `SAMPLE_BATCH` per pixel, so a queue never holds
+//! more than 256 x 16 = 4096 rays (4096 x 36 bytes = 144 KiB: it stays in L2).
+
+mod queues;
+mod stages;
+
+pub use queues::{PathState, RayQueue, ShadowQueue};
+pub use stages::{ShadeOutputs, Surface};
+
+use crate::accel::{Accel, TraceStats};
+use crate::integrator::{Integrator, LightSet};
+use crate::math::{Hit, Vec3};
+use crate::scene::{Camera, Scene};
+
+/// Tile side in pixels.
+pub const TILE: u32 = 16;
+/// Samples per pixel traced together in one wavefront pass.
+pub const SAMPLE_BATCH: u32 = 16;
+
+/// What every stage reads: immutable for the whole render.
+pub struct RenderContext<'a> {
+    pub scene: &'a Scene,
+    pub accel: &'a Accel,
+    pub camera: &'a Camera,
+    pub integrator: &'a Integrator,
+    pub lights: &'a LightSet,
+    pub spp: u32,
+    pub light_samples: u32,
+    pub max_depth: u32,
+    pub seed: u64,
+    /// Smallest offset for spawned rays: 1e-5 of the scene's bounding-box diagonal.
+    pub scene_epsilon: f32,
+}
+
+impl RenderContext<'_> {
+    /// How far a ray spawned at `p` must start from the surface to clear its own rounding
+    /// error: hit points carry an error of a few ulps of their largest coordinate, so the offset
+    /// scales with |p| (32 ulps) and never drops below the scene-relative minimum. This keeps
+    /// shadow acne and light leaks away when a scene is moved far from the origin or rescaled.
+    #[inline]
+    pub fn ray_epsilon(&self, p: Vec3) -> f32 {
+        const ULPS: f32 = 32.0 * f32::EPSILON;
+        (p.abs().max_element() * ULPS).max(self.scene_epsilon)
+    }
+
+    /// A spawn point for a ray leaving `p` in direction `dir`: pushed off the surface along the
+    /// geometric normal `ng`, to the side the ray leaves through.
+    #[inline]
+    pub fn offset_origin(&self, p: Vec3, ng: Vec3, dir: Vec3) -> Vec3 {
+        let side = if ng.dot(dir) >= 0.0 { 1.0 } else { -1.0 };
+        p + (side * self.ray_epsilon(p)) * ng
+    }
+}
+
+/// Rays traced, by kind, and the traversal work they caused.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct RenderStats {
+    pub camera_rays: u64,
+    pub bounce_rays: u64,
+    pub shadow_rays: u64,
+    /// Closest-hit direct-light rays of uniform hemisphere sampling.
+    pub probe_rays: u64,
+    pub trace: TraceStats,
+}
+
+impl RenderStats {
+    pub fn add(&mut self, o: &RenderStats) {
+        self.camera_rays += o.camera_rays;
+        self.bounce_rays += o.bounce_rays;
+        self.shadow_rays += o.shadow_rays;
+        self.probe_rays += o.probe_rays;
+        self.trace.add(&o.trace);
+    }
+
+    pub fn total_rays(&self) -> u64 {
+        self.camera_rays + self.bounce_rays + self.shadow_rays + self.probe_rays
+    }
+}
+
+/// A rectangle of pixels, row 0 at the top of the image.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Tile {
+    pub x0: u32,
+    pub y0: u32,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl Tile {
+    pub fn pixel_count(&self) -> usize {
+        (self.width * self.height) as usize
+    }
+}
+
+/// Cuts a `width` x `height` image into tiles of at most `TILE` x `TILE`, row-major.
+pub fn tiles(width: u32, height: u32) -> Vec<Tile> {
+    let mut out = Vec::new();
+    for y0 in (0..height).step_by(TILE as usize) {
+        for x0 in (0..width).step_by(TILE as usize) {
+            out.push(Tile {
+                x0,
+                y0,
+                width: TILE.min(width - x0),
+                height: TILE.min(height - y0),
+            });
+        }
+    }
+    out
+}
+
+/// Per-thread scratch space, reused across tiles so the stage loop never allocates.
+#[derive(Default)]
+pub struct Workspace {
+    paths: PathState,
+    rays: RayQueue,
+    next_rays: RayQueue,
+    shadow: ShadowQueue,
+    probes: ShadowQueue,
+    hits: Vec<Option<Hit>>,
+    sum: Vec<Vec3>,
+}
+
+/// Renders one tile: the mean radiance of each of its pixels, row-major, into `out`.
+pub fn render_tile(
+    ctx: &RenderContext,
+    tile: Tile,
+    ws: &mut Workspace,
+    out: &mut [Vec3],
+    stats: &mut RenderStats,
+) {
+    let n = tile.pixel_count();
+    ws.sum.clear();
+    ws.sum.resize(n, Vec3::ZERO);
+    let mut first = 0;
+    while first < ctx.spp {
+        let batch = SAMPLE_BATCH.min(ctx.spp - first);
+        trace_sample_batch(ctx, tile, first, batch, ws, stats);
+        first += batch;
+    }
+    let inv = 1.0 / ctx.spp as f32;
+    for (o, s) in out.iter_mut().zip(&ws.sum) {
+        *o = *s * inv;
+    }
+}
+
+/// Samples `first .. first + batch` of every pixel of the tile, through all stages.
+fn trace_sample_batch(
+    ctx: &RenderContext,
+    tile: Tile,
+    first: u32,
+    batch: u32,
+    ws: &mut Workspace,
+    stats: &mut RenderStats,
+) {
+    stages::generate_camera_rays(ctx, tile, first, batch, &mut ws.paths, &mut ws.rays);
+    stats.camera_rays += ws.rays.len() as u64;
+    let mut depth = 0;
+    while !ws.rays.is_empty() {
+        stages::extend(ctx, &ws.rays, &mut ws.hits, &mut stats.trace);
+        ws.next_rays.clear();
+        ws.shadow.clear();
+        ws.probes.clear();
+        let queues = stages::ShadeOutputs {
+            next: &mut ws.next_rays,
+            shadow: &mut ws.shadow,
+            probes: &mut ws.probes,
+        };
+        stages::shade(ctx, depth, &ws.rays, &ws.hits, &mut ws.paths, queues);
+        stats.shadow_rays += ws.shadow.len() as u64;
+        stats.probe_rays += ws.probes.len() as u64;
+        stages::trace_shadow_rays(ctx, &ws.shadow, &mut ws.paths, &mut stats.trace);
+        stages::trace_emission_probes(ctx, &ws.probes, &mut ws.paths, &mut stats.trace);
+        std::mem::swap(&mut ws.rays, &mut ws.next_rays);
+        stats.bounce_rays += ws.rays.len() as u64;
+        depth += 1;
+    }
+    stages::accumulate(&ws.paths, &mut ws.sum);
+}

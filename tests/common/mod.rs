@@ -10,11 +10,16 @@ use std::path::PathBuf;
 pub fn scenes_dir() -> Option<PathBuf> {
     let dir = std::env::var_os("PT_SCENES")
         .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes/cs184"));
+        .unwrap_or_else(|| {
+            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes/cs184")
+        });
     if dir.is_dir() {
         Some(dir)
     } else if std::env::var_os("PT_REQUIRE_SCENES").is_some() {
-        panic!("PT_REQUIRE_SCENES is set but {} does not exist", dir.display());
+        panic!(
+            "PT_REQUIRE_SCENES is set but {} does not exist",
+            dir.display()
+        );
     } else {
         eprintln!("skipped: scenes not found at {}", dir.display());
         None
@@ -28,7 +33,9 @@ pub fn course_scene(rel: &str) -> Option<PathBuf> {
 
 /// Every `.dae` under the scenes directory, sorted.
 pub fn all_course_scenes() -> Vec<PathBuf> {
-    let Some(dir) = scenes_dir() else { return Vec::new() };
+    let Some(dir) = scenes_dir() else {
+        return Vec::new();
+    };
     let mut out = Vec::new();
     let mut stack = vec![dir];
     while let Some(d) = stack.pop() {
@@ -44,3 +51,99 @@ pub fn all_course_scenes() -> Vec<PathBuf> {
     out.sort();
     out
 }
+
+use pathtracer::accel::{Accel, AccelKind};
+use pathtracer::integrator::{DirectLighting, Integrator};
+use pathtracer::math::Vec3;
+use pathtracer::render::{render, RenderConfig};
+use pathtracer::scene::{CameraDesc, Light, Material, Scene};
+
+/// Builds small scenes in code for analytic tests.
+pub struct SceneBuilder {
+    pub scene: Scene,
+}
+
+impl SceneBuilder {
+    pub fn new() -> Self {
+        let camera = CameraDesc {
+            view_dir: Vec3::Y,
+            ..CameraDesc::default()
+        };
+        SceneBuilder {
+            scene: Scene {
+                camera,
+                ..Scene::default()
+            },
+        }
+    }
+
+    pub fn material(&mut self, m: Material) -> u32 {
+        self.scene.materials.push(m);
+        self.scene.materials.len() as u32 - 1
+    }
+
+    /// A quad with corners a, b, c, d (counter-clockwise seen from its front side).
+    pub fn quad(&mut self, corners: [Vec3; 4], material: u32) {
+        let base = self.scene.positions.len() as u32;
+        let n = (corners[1] - corners[0])
+            .cross(corners[2] - corners[0])
+            .normalize();
+        for c in corners {
+            self.scene.positions.push(c);
+            self.scene.normals.push(n);
+        }
+        for t in [[0, 1, 2], [0, 2, 3]] {
+            self.scene.triangles.push(t.map(|i| base + i));
+            self.scene.triangle_materials.push(material);
+        }
+    }
+
+    /// A horizontal rectangle at height y spanning [x0, x1] x [z0, z1]; `up` sets its front.
+    pub fn horizontal_quad(
+        &mut self,
+        y: f32,
+        x: (f32, f32),
+        z: (f32, f32),
+        up: bool,
+        material: u32,
+    ) {
+        let c = [
+            Vec3::new(x.0, y, z.0),
+            Vec3::new(x.0, y, z.1),
+            Vec3::new(x.1, y, z.1),
+            Vec3::new(x.1, y, z.0),
+        ];
+        // (x0,z0) -> (x0,z1) -> (x1,z1): normal = +y.
+        let corners = if up { c } else { [c[0], c[3], c[2], c[1]] };
+        self.quad(corners, material);
+    }
+
+    pub fn light(&mut self, l: Light) {
+        self.scene.lights.push(l);
+    }
+
+    pub fn build(self) -> Scene {
+        self.scene.validate().unwrap();
+        self.scene
+    }
+}
+
+/// Renders with the given integrator; returns the linear pixels.
+pub fn render_pixels(
+    scene: &Scene,
+    integrator: Integrator,
+    f: impl FnOnce(&mut RenderConfig),
+) -> Vec<Vec3> {
+    let accel = Accel::build(scene, AccelKind::Bvh);
+    let mut config = RenderConfig {
+        integrator,
+        threads: 2,
+        ..RenderConfig::default()
+    };
+    f(&mut config);
+    render(scene, &accel, &config).unwrap().pixels
+}
+
+pub const LIGHT: Integrator = Integrator::Path(DirectLighting::LightSampling);
+pub const HEMISPHERE: Integrator = Integrator::Path(DirectLighting::Hemisphere);
+pub const MIS: Integrator = Integrator::Path(DirectLighting::Mis);

@@ -1,0 +1,230 @@
+//! What next-event estimation samples, and with which pdf.
+//!
+//! Two sources of light exist in a course scene (SCENE_FORMAT.md): *scene lights* (area, point,
+//! directional, ambient), which are not geometry and are reached only by light sampling, and
+//! *emissive geometry*, which camera and BSDF rays see. In the course's semantics light
+//! sampling samples the scene lights. In the emissive-geometry mode the emissive triangles and
+//! spheres themselves are the area lights (picked by power, sampled by area) and the scene's CGL
+//! area lights are left out, since in the course files they duplicate the emissive quads.
+
+use std::f32::consts::PI;
+
+use crate::math::Vec3;
+use crate::scene::{Light, Material, Scene};
+
+/// A point on a light as seen from a shading point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LightSample {
+    /// Unit direction from the shading point towards the light.
+    pub wi: Vec3,
+    /// Distance to the sampled point (infinite for directional and sky light).
+    pub dist: f32,
+    /// Incident radiance (or intensity, for the course's falloff-free point lights).
+    pub li: Vec3,
+    /// Solid-angle pdf; 1 for delta lights, whose contribution is not divided by anything.
+    pub pdf: f32,
+}
+
+/// An emissive triangle or sphere, chosen with probability proportional to its power.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Emitter {
+    Triangle(u32),
+    Sphere(u32),
+}
+
+/// The lights of one render.
+#[derive(Debug, Clone, Default)]
+pub struct LightSet {
+    /// Scene lights sampled one by one (all of them in course mode; all but `Area` in the
+    /// emissive-geometry mode).
+    pub scene_lights: Vec<Light>,
+    emitters: Vec<Emitter>,
+    /// Running sum of emitter power (area x luminance of the emitted radiance).
+    emitter_cdf: Vec<f32>,
+    emitter_power: f32,
+}
+
+pub fn luminance(c: Vec3) -> f32 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}
+
+impl LightSet {
+    /// The scene lights, as the course samples them.
+    pub fn course(scene: &Scene) -> LightSet {
+        LightSet {
+            scene_lights: scene.lights.clone(),
+            ..Default::default()
+        }
+    }
+
+    /// Emissive geometry as area lights, plus the scene's non-area lights.
+    pub fn emissive_geometry(scene: &Scene) -> LightSet {
+        let mut set = LightSet {
+            scene_lights: scene
+                .lights
+                .iter()
+                .filter(|l| !matches!(l, Light::Area { .. }))
+                .copied()
+                .collect(),
+            ..Default::default()
+        };
+        let triangles = (0..scene.triangles.len() as u32).map(Emitter::Triangle);
+        let spheres = (0..scene.spheres.len() as u32).map(Emitter::Sphere);
+        for e in triangles.chain(spheres) {
+            let power = emitter_area(scene, e) * luminance(emitter_radiance(scene, e));
+            if power > 0.0 {
+                set.emitter_power += power;
+                set.emitters.push(e);
+                set.emitter_cdf.push(set.emitter_power);
+            }
+        }
+        set
+    }
+
+    pub fn has_emitters(&self) -> bool {
+        !self.emitters.is_empty()
+    }
+
+    /// Samples a point on the emissive geometry as seen from `p`; `None` if it faces away.
+    pub fn sample_emitter(&self, scene: &Scene, p: Vec3, u: [f32; 3]) -> Option<LightSample> {
+        let target = u[0] * self.emitter_power;
+        let i = self
+            .emitter_cdf
+            .partition_point(|&c| c <= target)
+            .min(self.emitters.len().checked_sub(1)?);
+        let e = self.emitters[i];
+        let (q, nq) = sample_emitter_point(scene, e, u[1], u[2]);
+        let d = q - p;
+        let dist = d.length();
+        let wi = d / dist;
+        let cos_l = -nq.dot(wi);
+        if !(cos_l > 0.0 && dist > 0.0) {
+            return None;
+        }
+        let pdf = self.emitter_pick_pdf(scene, e) * dist * dist / (emitter_area(scene, e) * cos_l);
+        Some(LightSample {
+            wi,
+            dist,
+            li: emitter_radiance(scene, e),
+            pdf,
+        })
+    }
+
+    /// The solid-angle pdf with which `sample_emitter` would have chosen the point that a ray
+    /// from a shading point hit at distance `dist`, with cosine `cos_l` at the emitter.
+    pub fn emitter_pdf(&self, scene: &Scene, prim: u32, dist: f32, cos_l: f32) -> f32 {
+        let e = if prim & crate::accel::SPHERE_BIT != 0 {
+            Emitter::Sphere(prim & !crate::accel::SPHERE_BIT)
+        } else {
+            Emitter::Triangle(prim)
+        };
+        self.emitter_pick_pdf(scene, e) * dist * dist / (emitter_area(scene, e) * cos_l.max(1e-12))
+    }
+
+    fn emitter_pick_pdf(&self, scene: &Scene, e: Emitter) -> f32 {
+        emitter_area(scene, e) * luminance(emitter_radiance(scene, e)) / self.emitter_power
+    }
+}
+
+/// Samples a scene light from shading point `p` with normal `n` (used for the sky).
+pub fn sample_scene_light(light: &Light, p: Vec3, n: Vec3, u: [f32; 2]) -> Option<LightSample> {
+    match *light {
+        Light::Area {
+            position,
+            direction,
+            dim_x,
+            dim_y,
+            radiance,
+        } => {
+            let q = position + (u[0] - 0.5) * dim_x + (u[1] - 0.5) * dim_y;
+            let d = q - p;
+            let dist = d.length();
+            let wi = d / dist;
+            // One-sided: it radiates only into the half-space `direction` points to.
+            let cos_l = -direction.dot(wi);
+            let area = dim_x.cross(dim_y).length();
+            (cos_l > 0.0 && dist > 0.0 && area > 0.0).then(|| LightSample {
+                wi,
+                dist,
+                li: radiance,
+                pdf: dist * dist / (area * cos_l),
+            })
+        }
+        Light::Point { position, radiance } => {
+            let d = position - p;
+            let dist = d.length();
+            (dist > 0.0).then(|| LightSample {
+                wi: d / dist,
+                dist,
+                li: radiance,
+                pdf: 1.0,
+            })
+        }
+        Light::Directional {
+            direction,
+            radiance,
+        } => Some(LightSample {
+            wi: direction,
+            dist: f32::INFINITY,
+            li: radiance,
+            pdf: 1.0,
+        }),
+        Light::Ambient { radiance } => {
+            // Cosine-weighted about the surface normal; only the upper (+Y) sky emits.
+            let (t, b) = crate::math::orthonormal_basis(n);
+            let l = super::bsdf::cosine_hemisphere(u[0], u[1]);
+            let wi = l.x * t + l.y * b + l.z * n;
+            (wi.y > 0.0 && l.z > 0.0).then(|| LightSample {
+                wi,
+                dist: f32::INFINITY,
+                li: radiance,
+                pdf: l.z / PI,
+            })
+        }
+    }
+}
+
+fn emitter_radiance(scene: &Scene, e: Emitter) -> Vec3 {
+    let m = match e {
+        Emitter::Triangle(i) => scene.triangle_materials[i as usize],
+        Emitter::Sphere(i) => scene.spheres[i as usize].material,
+    };
+    match scene.materials[m as usize] {
+        Material::Emission { radiance } => radiance,
+        _ => Vec3::ZERO,
+    }
+}
+
+fn emitter_area(scene: &Scene, e: Emitter) -> f32 {
+    match e {
+        Emitter::Triangle(i) => {
+            let [a, b, c] = scene.triangle(i as usize);
+            0.5 * (b - a).cross(c - a).length()
+        }
+        Emitter::Sphere(i) => {
+            let r = scene.spheres[i as usize].radius;
+            4.0 * PI * r * r
+        }
+    }
+}
+
+/// A uniformly distributed point on the emitter and its front-facing normal.
+fn sample_emitter_point(scene: &Scene, e: Emitter, u1: f32, u2: f32) -> (Vec3, Vec3) {
+    match e {
+        Emitter::Triangle(i) => {
+            let [a, b, c] = scene.triangle(i as usize);
+            let s = u1.sqrt();
+            let (b1, b2) = (1.0 - s, u2 * s);
+            let q = a + b1 * (b - a) + b2 * (c - a);
+            (q, (b - a).cross(c - a).normalize_or(Vec3::Y))
+        }
+        Emitter::Sphere(i) => {
+            let s = scene.spheres[i as usize];
+            let z = 1.0 - 2.0 * u1;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let phi = 2.0 * PI * u2;
+            let n = Vec3::new(r * phi.cos(), r * phi.sin(), z);
+            (s.center + s.radius * n, n)
+        }
+    }
+}

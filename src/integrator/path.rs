@@ -1,0 +1,301 @@
+//! The lighting integrators as one shading hook: direct lighting (`-m 1`) and global
+//! illumination (`-m N`) with three estimators of direct light.
+//!
+//! At a path vertex reached by a ray of depth k (camera rays have k = 0):
+//! 1. Emission of a front-facing emitter is added when k = 0 (the course's zero bounce), when
+//!    the previous bounce was specular (no light sampling happened there), and, weighted by
+//!    MIS, in the emissive-geometry mode. Otherwise it is the direct estimator's job, so no
+//!    emitter is counted twice.
+//! 2. If k < max_depth, direct light: light sampling queues shadow rays, uniform hemisphere
+//!    sampling queues emission probes (closest-hit rays that add what they see), MIS queues
+//!    shadow rays to points on emissive geometry.
+//! 3. If k + 1 < max_depth (or = max_depth under MIS, for the BSDF half of the MIS pair) a BSDF
+//!    sample continues the path, with Russian roulette from the fourth bounce on.
+
+use super::bsdf::{self, UNIFORM_HEMISPHERE_PDF};
+use super::lights::{sample_scene_light, LightSample};
+use crate::math::{orthonormal_basis, Ray, Vec3};
+use crate::scene::Material;
+use crate::wavefront::{PathState, RenderContext, ShadeOutputs, Surface};
+
+/// How direct light is estimated at each path vertex.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DirectLighting {
+    /// `-H`: uniform hemisphere directions; only emissive geometry is found.
+    Hemisphere,
+    /// The course default: sample the scene lights (`-l` samples per area light).
+    LightSampling,
+    /// Emissive geometry is the light: area sampling and BSDF sampling combined by MIS.
+    Mis,
+}
+
+/// Bounces before Russian roulette may end a path.
+const RR_START_DEPTH: u32 = 3;
+
+/// A local shading frame: normal `n`, tangents `t`, `b`.
+struct Frame {
+    t: Vec3,
+    b: Vec3,
+    n: Vec3,
+}
+
+impl Frame {
+    fn new(n: Vec3) -> Frame {
+        let (t, b) = orthonormal_basis(n);
+        Frame { t, b, n }
+    }
+    fn to_local(&self, v: Vec3) -> Vec3 {
+        Vec3::new(v.dot(self.t), v.dot(self.b), v.dot(self.n))
+    }
+    fn to_world(&self, v: Vec3) -> Vec3 {
+        v.x * self.t + v.y * self.b + v.z * self.n
+    }
+}
+
+/// Everything the direct-light estimators need at one vertex.
+struct Vertex<'a> {
+    p: Vec3,
+    /// Geometric normal on the side of the incoming ray.
+    ng: Vec3,
+    frame: Frame,
+    wo: Vec3,
+    material: &'a Material,
+    throughput: Vec3,
+}
+
+#[allow(clippy::too_many_arguments)]
+pub fn shade_hit(
+    direct: DirectLighting,
+    ctx: &RenderContext,
+    depth: u32,
+    ray: &Ray,
+    surface: &Surface,
+    path: u32,
+    paths: &mut PathState,
+    out: &mut ShadeOutputs,
+) {
+    let pi = path as usize;
+    let material = &ctx.scene.materials[surface.material as usize];
+    let cos_out = -surface.ng.dot(ray.dir);
+
+    if let Material::Emission { radiance } = *material {
+        if cos_out > 0.0 {
+            let w = emission_weight(direct, ctx, depth, surface, cos_out, paths.bsdf_pdf[pi]);
+            paths.radiance[pi] += w * paths.throughput[pi] * radiance;
+        }
+        return; // Emitters reflect nothing.
+    }
+    if depth >= ctx.max_depth {
+        return;
+    }
+
+    // Reflective materials are two-sided: turn the normals towards the viewer. Dielectrics keep
+    // the outward normal so that the BSDF knows whether the ray enters or leaves.
+    let transmissive = matches!(
+        material,
+        Material::Glass { .. } | Material::Refraction { .. }
+    );
+    let flip = !transmissive && cos_out < 0.0;
+    let sign = if flip { -1.0 } else { 1.0 };
+    let ng = sign * surface.ng;
+    let mut ns = sign * surface.ns;
+    if !transmissive && ns.dot(-ray.dir) <= 0.0 {
+        // Interpolated normals can face away at silhouettes; fall back to the true normal.
+        ns = ng;
+    }
+    let frame = Frame::new(ns);
+    let v = Vertex {
+        p: surface.p,
+        ng,
+        wo: frame.to_local(-ray.dir),
+        frame,
+        material,
+        throughput: paths.throughput[pi],
+    };
+
+    if bsdf::has_smooth_lobe(material) {
+        match direct {
+            DirectLighting::LightSampling => sample_scene_lights(ctx, &v, path, paths, out),
+            DirectLighting::Hemisphere => queue_hemisphere_probes(ctx, &v, path, paths, out),
+            DirectLighting::Mis => sample_emissive_geometry(ctx, &v, path, paths, out),
+        }
+    }
+
+    let continues =
+        depth + 1 < ctx.max_depth || (direct == DirectLighting::Mis && depth + 1 == ctx.max_depth);
+    if continues {
+        continue_path(ctx, depth, &v, path, paths, out);
+    }
+}
+
+/// The MIS / course weight of emission seen at a path vertex (see the module docs).
+fn emission_weight(
+    direct: DirectLighting,
+    ctx: &RenderContext,
+    depth: u32,
+    surface: &Surface,
+    cos_l: f32,
+    prev_bsdf_pdf: f32,
+) -> f32 {
+    let after_specular = prev_bsdf_pdf == 0.0;
+    if depth == 0 || after_specular {
+        return 1.0;
+    }
+    match direct {
+        DirectLighting::Mis => {
+            // Rays are unit length, so the hit distance is the ray parameter.
+            let light_pdf = ctx
+                .lights
+                .emitter_pdf(ctx.scene, surface.prim, surface.t, cos_l);
+            power_heuristic(1.0, prev_bsdf_pdf, ctx.light_samples as f32, light_pdf)
+        }
+        _ => 0.0,
+    }
+}
+
+/// Veach's power heuristic (beta = 2) for nf samples of pdf f against ng samples of pdf g.
+fn power_heuristic(nf: f32, f: f32, ng: f32, g: f32) -> f32 {
+    let (a, b) = (nf * f, ng * g);
+    if a == 0.0 && b == 0.0 {
+        return 0.0;
+    }
+    a * a / (a * a + b * b)
+}
+
+/// Course light sampling: every scene light, `-l` samples for non-delta lights, 1 for delta.
+fn sample_scene_lights(
+    ctx: &RenderContext,
+    v: &Vertex,
+    path: u32,
+    paths: &mut PathState,
+    out: &mut ShadeOutputs,
+) {
+    let rng = &mut paths.rng[path as usize];
+    for light in &ctx.lights.scene_lights {
+        let n = if light.is_delta() {
+            1
+        } else {
+            ctx.light_samples
+        };
+        for _ in 0..n {
+            let u = [rng.next_f32(), rng.next_f32()];
+            if let Some(ls) = sample_scene_light(light, v.p, v.frame.n, u) {
+                queue_shadow_ray(ctx, v, &ls, 1.0 / n as f32, path, out);
+            }
+        }
+    }
+}
+
+/// Emissive geometry sampled by area (`-l` samples), MIS-weighted against BSDF sampling; plus
+/// the scene's point, directional and sky lights as in course mode.
+fn sample_emissive_geometry(
+    ctx: &RenderContext,
+    v: &Vertex,
+    path: u32,
+    paths: &mut PathState,
+    out: &mut ShadeOutputs,
+) {
+    sample_scene_lights(ctx, v, path, paths, out);
+    if !ctx.lights.has_emitters() {
+        return;
+    }
+    let n = ctx.light_samples;
+    let rng = &mut paths.rng[path as usize];
+    for _ in 0..n {
+        let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+        let Some(ls) = ctx.lights.sample_emitter(ctx.scene, v.p, u) else {
+            continue;
+        };
+        let bsdf_pdf = bsdf::pdf(v.material, v.wo, v.frame.to_local(ls.wi));
+        let w = power_heuristic(n as f32, ls.pdf, 1.0, bsdf_pdf);
+        queue_shadow_ray(ctx, v, &ls, w / n as f32, path, out);
+    }
+}
+
+/// Queues the occlusion test for one light sample, if it can contribute at all.
+fn queue_shadow_ray(
+    ctx: &RenderContext,
+    v: &Vertex,
+    ls: &LightSample,
+    scale: f32,
+    path: u32,
+    out: &mut ShadeOutputs,
+) {
+    let wi = v.frame.to_local(ls.wi);
+    let cos = wi.z;
+    if cos <= 0.0 || ls.wi.dot(v.ng) <= 0.0 {
+        return;
+    }
+    let f = bsdf::eval(v.material, v.wo, wi);
+    let contribution = v.throughput * f * ls.li * (cos * scale / ls.pdf);
+    if contribution.max_element() <= 0.0 || !contribution.is_finite() {
+        return;
+    }
+    let origin = ctx.offset_origin(v.p, v.ng, ls.wi);
+    // Stop short of the light point so that an emissive quad lying exactly in the light's plane
+    // does not shadow its own light (the write-up's EPS_F puzzle).
+    let t_max = if ls.dist.is_finite() {
+        ls.dist - ctx.ray_epsilon(v.p + ls.dist * ls.wi)
+    } else {
+        f32::INFINITY
+    };
+    out.shadow
+        .push(Ray::segment(origin, ls.wi, 0.0, t_max), contribution, path);
+}
+
+/// Uniform hemisphere sampling of direct light, as the course does it: lights x `-l` rays per
+/// vertex, each adding what emissive geometry it sees.
+fn queue_hemisphere_probes(
+    ctx: &RenderContext,
+    v: &Vertex,
+    path: u32,
+    paths: &mut PathState,
+    out: &mut ShadeOutputs,
+) {
+    let n = ctx.scene.lights.len().max(1) as u32 * ctx.light_samples;
+    let rng = &mut paths.rng[path as usize];
+    for _ in 0..n {
+        let wi = bsdf::uniform_hemisphere(rng.next_f32(), rng.next_f32());
+        let f = bsdf::eval(v.material, v.wo, wi);
+        let weight = v.throughput * f * (wi.z / (UNIFORM_HEMISPHERE_PDF * n as f32));
+        let dir = v.frame.to_world(wi);
+        if weight.max_element() <= 0.0 || dir.dot(v.ng) <= 0.0 {
+            continue;
+        }
+        let origin = ctx.offset_origin(v.p, v.ng, dir);
+        out.probes.push(Ray::new(origin, dir), weight, path);
+    }
+}
+
+/// BSDF-samples the next direction, updates the throughput, and queues the bounce ray.
+fn continue_path(
+    ctx: &RenderContext,
+    depth: u32,
+    v: &Vertex,
+    path: u32,
+    paths: &mut PathState,
+    out: &mut ShadeOutputs,
+) {
+    let pi = path as usize;
+    let rng = &mut paths.rng[pi];
+    let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+    let Some(s) = bsdf::sample(v.material, v.wo, u) else {
+        return;
+    };
+    let mut throughput = v.throughput * s.weight;
+    if depth + 1 >= RR_START_DEPTH {
+        let q = throughput.max_element().min(1.0);
+        if q <= 0.0 || rng.next_f32() >= q {
+            return;
+        }
+        throughput /= q;
+    }
+    if throughput.max_element() <= 0.0 || !throughput.is_finite() {
+        return;
+    }
+    let dir = v.frame.to_world(s.wi).normalize();
+    let origin = ctx.offset_origin(v.p, v.ng, dir);
+    paths.throughput[pi] = throughput;
+    paths.bsdf_pdf[pi] = s.pdf;
+    out.next.push(Ray::new(origin, dir), path);
+}

@@ -1,0 +1,110 @@
+//! The SoA arrays the stages pass between each other.
+//!
+//! Path state is stored column by column (one `Vec` per field) so a stage touches only the
+//! fields it needs. Queue entries hold a whole `Ray` record (32 bytes, read whole by traversal)
+//! plus the index of the path it belongs to.
+
+use crate::math::{Ray, Vec3};
+use crate::sampler::Pcg32;
+
+/// One entry per path (pixel sample) of the current batch.
+#[derive(Default)]
+pub struct PathState {
+    /// Pixel index within the tile.
+    pub pixel: Vec<u32>,
+    /// Product of BSDF weights along the path so far.
+    pub throughput: Vec<Vec3>,
+    /// Radiance gathered so far.
+    pub radiance: Vec<Vec3>,
+    /// Solid-angle pdf of the BSDF sample that made the current ray; 0 for camera rays and
+    /// specular bounces (MIS and the emission rules read it).
+    pub bsdf_pdf: Vec<f32>,
+    pub rng: Vec<Pcg32>,
+}
+
+impl PathState {
+    pub fn clear(&mut self) {
+        self.pixel.clear();
+        self.throughput.clear();
+        self.radiance.clear();
+        self.bsdf_pdf.clear();
+        self.rng.clear();
+    }
+
+    pub fn push(&mut self, pixel: u32, rng: Pcg32) -> u32 {
+        let id = self.pixel.len() as u32;
+        self.pixel.push(pixel);
+        self.throughput.push(Vec3::ONE);
+        self.radiance.push(Vec3::ZERO);
+        self.bsdf_pdf.push(0.0);
+        self.rng.push(rng);
+        id
+    }
+
+    pub fn len(&self) -> usize {
+        self.pixel.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.pixel.is_empty()
+    }
+}
+
+/// Rays waiting for a closest-hit query.
+#[derive(Default)]
+pub struct RayQueue {
+    pub rays: Vec<Ray>,
+    pub path: Vec<u32>,
+}
+
+impl RayQueue {
+    pub fn clear(&mut self) {
+        self.rays.clear();
+        self.path.clear();
+    }
+
+    pub fn push(&mut self, ray: Ray, path: u32) {
+        self.rays.push(ray);
+        self.path.push(path);
+    }
+
+    pub fn len(&self) -> usize {
+        self.rays.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.rays.is_empty()
+    }
+}
+
+/// Direct-light rays. As shadow rays (any hit): if `rays[i]` is unblocked, `radiance[i]` is
+/// added to path `path[i]`. As emission probes (closest hit, uniform hemisphere sampling):
+/// `radiance[i]` is a weight, multiplied by the emission of whatever front face the ray hits.
+#[derive(Default)]
+pub struct ShadowQueue {
+    pub rays: Vec<Ray>,
+    pub radiance: Vec<Vec3>,
+    pub path: Vec<u32>,
+}
+
+impl ShadowQueue {
+    pub fn clear(&mut self) {
+        self.rays.clear();
+        self.radiance.clear();
+        self.path.clear();
+    }
+
+    pub fn push(&mut self, ray: Ray, radiance: Vec3, path: u32) {
+        self.rays.push(ray);
+        self.radiance.push(radiance);
+        self.path.push(path);
+    }
+
+    pub fn len(&self) -> usize {
+        self.rays.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.rays.is_empty()
+    }
+}

@@ -1,0 +1,43 @@
+//! Stage 1: camera rays for a batch of samples of every pixel of a tile.
+
+use super::super::{PathState, RayQueue, RenderContext, Tile};
+use crate::sampler::Pcg32;
+
+/// Starts one path per (pixel, sample) and queues its camera ray. With one sample per pixel the
+/// ray goes through the pixel centre (as the course does); otherwise it is jittered uniformly
+/// within the pixel.
+pub fn generate_camera_rays(
+    ctx: &RenderContext,
+    tile: Tile,
+    first_sample: u32,
+    batch: u32,
+    paths: &mut PathState,
+    rays: &mut RayQueue,
+) {
+    paths.clear();
+    rays.clear();
+    let width = ctx.camera.width;
+    for local_y in 0..tile.height {
+        for local_x in 0..tile.width {
+            let (x, y) = (tile.x0 + local_x, tile.y0 + local_y);
+            let pixel_in_image = y as u64 * width as u64 + x as u64;
+            for s in first_sample..first_sample + batch {
+                let mut rng = path_rng(ctx.seed, pixel_in_image, s, ctx.spp);
+                let (jx, jy) = if ctx.spp == 1 {
+                    (0.5, 0.5)
+                } else {
+                    (rng.next_f32(), rng.next_f32())
+                };
+                let ray = ctx.camera.ray_through_pixel(x as f32 + jx, y as f32 + jy);
+                let local = local_y * tile.width + local_x;
+                let id = paths.push(local, rng);
+                rays.push(ray, id);
+            }
+        }
+    }
+}
+
+/// The random stream of one pixel sample: independent of tiles, threads and batch sizes.
+fn path_rng(seed: u64, pixel: u64, sample: u32, spp: u32) -> Pcg32 {
+    Pcg32::new(seed, pixel * spp as u64 + sample as u64)
+}

@@ -1,0 +1,13 @@
+//! One file per stage; `wavefront::trace_sample_batch` calls them in order.
+
+mod accumulate;
+mod extend;
+mod generate;
+mod shade;
+mod shadow;
+
+pub use accumulate::accumulate;
+pub use extend::extend;
+pub use generate::generate_camera_rays;
+pub use shade::{shade, ShadeOutputs, Surface};
+pub use shadow::{trace_emission_probes, trace_shadow_rays};

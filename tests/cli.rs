@@ -1,0 +1,137 @@
+//! The command line end to end: bad input gives one line on stderr, exit code 2, no panic, and
+//! no output file; good input writes the image and prints the course's statistics.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+mod common;
+
+fn pathtracer(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_pathtracer"))
+        .args(args)
+        .output()
+        .expect("run pathtracer")
+}
+
+fn scratch_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("pt-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn cornell() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/cornell.dae")
+}
+
+/// Asserts a clean failure: exit 2, exactly one line on stderr containing `want`, no panic.
+fn assert_one_line_error(out: &Output, want: &str) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "stderr: {stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    let lines: Vec<&str> = stderr.lines().collect();
+    assert_eq!(lines.len(), 1, "want one line, got: {stderr}");
+    assert!(lines[0].starts_with("error: "), "{stderr}");
+    assert!(lines[0].contains(want), "want '{want}' in: {stderr}");
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+#[test]
+fn bad_scene_files_fail_cleanly_without_output() {
+    let dir = scratch_dir("bad");
+    let out_png = dir.join("out.png");
+    let cases: Vec<(PathBuf, &str)> = vec![
+        (dir.join("missing.dae"), "missing.dae"),
+        (write(&dir, "notxml.dae", "this is not xml <"), "notxml.dae"),
+        (
+            write(&dir, "notcollada.dae", "<html><body/></html>"),
+            "COLLADA",
+        ),
+        (
+            write(
+                &dir,
+                "dangling.dae",
+                r##"<COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
+                <library_visual_scenes><visual_scene id="S"><node id="n">
+                <instance_geometry url="#nothing"/></node></visual_scene></library_visual_scenes>
+                <scene><instance_visual_scene url="#S"/></scene></COLLADA>"##,
+            ),
+            "nothing",
+        ),
+    ];
+    for (scene, want) in cases {
+        let out = pathtracer(&["-f", out_png.to_str().unwrap(), scene.to_str().unwrap()]);
+        assert_one_line_error(&out, want);
+        assert!(!out_png.exists(), "{} left an output file", scene.display());
+    }
+}
+
+#[test]
+fn bad_flags_fail_cleanly() {
+    let scene = cornell();
+    let s = scene.to_str().unwrap();
+    for (args, want) in [
+        (vec!["-r", "0", "600", s], "out of range"),
+        (vec!["-r", "-3", "600", s], "out of range"),
+        (vec!["-s", "many", s], "not a valid number"),
+        (vec!["--frobnicate", s], "unknown option"),
+        (vec!["-f", "out.jpg", s], ".png or .exr"),
+        (vec!["-f", "/no/such/dir/x.png", s], "does not exist"),
+        (vec![], "no scene file"),
+    ] {
+        assert_one_line_error(&pathtracer(&args), want);
+    }
+}
+
+#[test]
+fn renders_the_cornell_box_and_prints_statistics() {
+    let dir = scratch_dir("ok");
+    let out_png = dir.join("cornell.png");
+    let out = pathtracer(&[
+        "-t",
+        "2",
+        "-r",
+        "64",
+        "48",
+        "--quiet",
+        "-f",
+        out_png.to_str().unwrap(),
+        cornell().to_str().unwrap(),
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for want in [
+        "Building BVH from",
+        "rays",
+        "million rays per second",
+        "intersection tests per ray",
+    ] {
+        assert!(stdout.contains(want), "missing '{want}' in:\n{stdout}");
+    }
+    let img = image::open(&out_png).unwrap();
+    assert_eq!((img.width(), img.height()), (64, 48));
+}
+
+#[test]
+fn info_reports_the_course_scene() {
+    let Some(scene) = common::course_scene("sky/CBspheres_lambertian.dae") else {
+        return;
+    };
+    let out = pathtracer(&["--info", scene.to_str().unwrap()]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("12"), "{stdout}");
+}

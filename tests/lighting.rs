@@ -1,0 +1,207 @@
+//! Lighting against analytic answers, and the estimators against each other.
+
+mod common;
+
+use common::{render_pixels, SceneBuilder, HEMISPHERE, LIGHT, MIS};
+use pathtracer::math::Vec3;
+use pathtracer::scene::{Light, Material, Scene};
+use std::f32::consts::PI;
+
+const ALBEDO: f32 = 0.5;
+
+/// A large diffuse floor at y = 0 seen from straight above.
+fn floor() -> SceneBuilder {
+    let mut b = SceneBuilder::new();
+    let m = b.material(Material::Diffuse {
+        albedo: Vec3::splat(ALBEDO),
+    });
+    b.horizontal_quad(0.0, (-1.0, 1.0), (-1.0, 1.0), true, m);
+    b
+}
+
+fn centre(pixels: &[Vec3], w: u32, h: u32) -> Vec3 {
+    pixels[((h / 2) * w + w / 2) as usize]
+}
+
+#[test]
+fn point_light_without_falloff_gives_albedo_over_pi_times_intensity_times_cosine() {
+    let mut b = floor();
+    b.light(Light::Point {
+        position: Vec3::new(0.0, 1.0, 0.0),
+        radiance: Vec3::splat(2.0),
+    });
+    let scene = b.build();
+    let px = render_pixels(&scene, LIGHT, |c| (c.width, c.height) = (33, 33));
+    // The centre pixel sees a point within a pixel of the origin, straight below the light.
+    let l = centre(&px, 33, 33).x;
+    let want = ALBEDO / PI * 2.0;
+    assert!((l - want).abs() < 2e-3 * want, "{l} vs {want}");
+}
+
+#[test]
+fn tiny_area_light_gives_l_a_cos_cos_over_d_squared() {
+    // A 0.02 x 0.02 light of radiance 1000 at height d = 0.5, tilted 30 degrees, facing the
+    // floor's centre; irradiance there is L A cos(theta_light) cos(theta_surface) / d^2.
+    let (d, side, radiance) = (0.5f32, 0.02f32, 1000.0f32);
+    let tilt = 30f32.to_radians();
+    let pos = Vec3::new(d * tilt.sin(), d * tilt.cos(), 0.0);
+    let facing = -pos.normalize(); // towards the floor's centre: cos(theta_light) = 1
+    let dim_x = Vec3::new(0.0, 0.0, side);
+    let dim_y = facing.cross(dim_x).normalize() * side;
+    let mut b = floor();
+    b.light(Light::Area {
+        position: pos,
+        direction: facing,
+        dim_x,
+        dim_y,
+        radiance: Vec3::splat(radiance),
+    });
+    let scene = b.build();
+    let px = render_pixels(&scene, LIGHT, |c| {
+        (c.width, c.height, c.light_samples) = (33, 33, 64);
+    });
+    let e = radiance * side * side * 1.0 * tilt.cos() / (d * d);
+    let want = ALBEDO / PI * e;
+    let l = centre(&px, 33, 33).x;
+    // The light subtends a tiny angle: the estimate is nearly noise-free; 1% covers the
+    // finite size of the light and of the pixel footprint.
+    assert!((l - want).abs() < 0.01 * want, "{l} vs {want}");
+}
+
+/// A closed box whose ceiling holds a square that is both an emissive quad (radiance L, facing
+/// down) and a scene area light of the same rectangle and radiance.
+fn coincident_light_box() -> Scene {
+    let mut b = SceneBuilder::new();
+    b.scene.camera.view_dir = Vec3::new(0.3, 0.4, 1.0).normalize();
+    let white = b.material(Material::Diffuse {
+        albedo: Vec3::splat(0.7),
+    });
+    let red = b.material(Material::Diffuse {
+        albedo: Vec3::new(0.7, 0.1, 0.1),
+    });
+    let emit = b.material(Material::Emission {
+        radiance: Vec3::splat(8.0),
+    });
+    b.horizontal_quad(0.0, (-1.0, 1.0), (-1.0, 1.0), true, white);
+    b.horizontal_quad(2.0, (-1.0, 1.0), (-1.0, 1.0), false, white);
+    // Left wall (x = -1) facing +x, back wall (z = -1) facing +z.
+    b.quad(
+        [
+            Vec3::new(-1.0, 0.0, -1.0),
+            Vec3::new(-1.0, 2.0, -1.0),
+            Vec3::new(-1.0, 2.0, 1.0),
+            Vec3::new(-1.0, 0.0, 1.0),
+        ],
+        red,
+    );
+    b.quad(
+        [
+            Vec3::new(-1.0, 0.0, -1.0),
+            Vec3::new(1.0, 0.0, -1.0),
+            Vec3::new(1.0, 2.0, -1.0),
+            Vec3::new(-1.0, 2.0, -1.0),
+        ],
+        white,
+    );
+    // The light, just below the ceiling so the ceiling does not hide it.
+    let y = 1.999;
+    b.horizontal_quad(y, (-0.3, 0.3), (-0.4, 0.4), false, emit);
+    b.light(Light::Area {
+        position: Vec3::new(0.0, y, 0.0),
+        direction: Vec3::NEG_Y,
+        dim_x: Vec3::new(0.6, 0.0, 0.0),
+        dim_y: Vec3::new(0.0, 0.0, 0.8),
+        radiance: Vec3::splat(8.0),
+    });
+    b.build()
+}
+
+/// Mean image value and its standard error, the noise variance measured from two renders with
+/// different seeds (their difference holds only noise).
+fn mean_and_error(
+    scene: &Scene,
+    integrator: pathtracer::integrator::Integrator,
+    spp: u32,
+    depth: u32,
+) -> (f64, f64) {
+    let run = |seed| {
+        render_pixels(scene, integrator, |c| {
+            (
+                c.width,
+                c.height,
+                c.spp,
+                c.light_samples,
+                c.max_depth,
+                c.seed,
+            ) = (24, 18, spp, 1, depth, seed)
+        })
+    };
+    let (a, b) = (run(1), run(2));
+    let lum = |v: &Vec3| (v.x + v.y + v.z) as f64 / 3.0;
+    let n = a.len() as f64;
+    let mean = a.iter().chain(&b).map(lum).sum::<f64>() / (2.0 * n);
+    let noise_var = a
+        .iter()
+        .zip(&b)
+        .map(|(x, y)| (lum(x) - lum(y)).powi(2))
+        .sum::<f64>()
+        / (2.0 * n);
+    // Standard error of the mean of 2n pixels.
+    (mean, (noise_var / (2.0 * n)).sqrt())
+}
+
+fn assert_agree(name: &str, (m1, e1): (f64, f64), (m2, e2): (f64, f64)) {
+    let bound = 4.0 * (e1 * e1 + e2 * e2).sqrt();
+    eprintln!("{name}: {m1:.5} +- {e1:.5} vs {m2:.5} +- {e2:.5}");
+    assert!(
+        (m1 - m2).abs() < bound,
+        "{name}: {m1:.5} vs {m2:.5} differ by more than {bound:.5} (4 sigma)"
+    );
+    // The bound must be meaningful: noise well below the signal.
+    assert!(
+        bound < 0.05 * m1,
+        "{name}: noise bound {bound} too loose for mean {m1}"
+    );
+}
+
+#[test]
+fn hemisphere_light_and_mis_sampling_agree_on_direct_light() {
+    let scene = coincident_light_box();
+    let light = mean_and_error(&scene, LIGHT, 64, 1);
+    let hemi = mean_and_error(&scene, HEMISPHERE, 1024, 1);
+    let mis = mean_and_error(&scene, MIS, 64, 1);
+    assert_agree("light vs hemisphere", light, hemi);
+    assert_agree("light vs mis", light, mis);
+}
+
+#[test]
+fn light_and_mis_sampling_agree_with_global_illumination() {
+    let scene = coincident_light_box();
+    let light = mean_and_error(&scene, LIGHT, 64, 5);
+    let mis = mean_and_error(&scene, MIS, 64, 5);
+    assert_agree("light vs mis, -m 5", light, mis);
+    // Indirect light adds to direct light.
+    let direct = mean_and_error(&scene, LIGHT, 64, 1);
+    assert!(
+        light.0 > direct.0 * 1.05,
+        "GI {} should exceed direct {}",
+        light.0,
+        direct.0
+    );
+}
+
+#[test]
+fn same_seed_gives_bit_identical_images_for_any_thread_count() {
+    let scene = coincident_light_box();
+    for integrator in [LIGHT, HEMISPHERE, MIS] {
+        let run = |threads| {
+            render_pixels(&scene, integrator, |c| {
+                (c.width, c.height, c.spp, c.max_depth, c.threads) = (37, 29, 4, 3, threads)
+            })
+        };
+        let one = run(1);
+        assert_eq!(one, run(2), "{integrator:?}");
+        assert_eq!(one, run(3), "{integrator:?}");
+        assert!(one.iter().all(|p| p.is_finite()));
+    }
+}
