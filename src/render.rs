@@ -54,6 +54,8 @@ pub struct RenderOutput {
     pub width: u32,
     pub height: u32,
     pub pixels: Vec<Vec3>,
+    /// Samples taken by each pixel (all equal to `spp` unless adaptive sampling stopped early).
+    pub samples: Vec<u32>,
     pub stats: RenderStats,
     pub time: Duration,
 }
@@ -72,6 +74,7 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         spp: config.spp,
         light_samples: config.light_samples,
         max_depth: config.max_depth,
+        adaptive: config.adaptive,
         seed: config.seed,
         scene_epsilon: 1e-5 * bounds.diagonal().max(f32::MIN_POSITIVE),
     };
@@ -82,7 +85,7 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
     let tiles = wavefront::tiles(config.width, config.height);
     let done = AtomicUsize::new(0);
     let start = Instant::now();
-    let (results, time): (Vec<(Vec<Vec3>, RenderStats)>, Duration) = std::thread::scope(|s| {
+    let (results, time): (Vec<TileResult>, Duration) = std::thread::scope(|s| {
         if config.progress {
             s.spawn(|| report_progress(&done, tiles.len(), start));
         }
@@ -101,33 +104,41 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         (results, time)
     });
 
-    let mut pixels = vec![Vec3::ZERO; (config.width * config.height) as usize];
+    let n = (config.width * config.height) as usize;
+    let (mut pixels, mut samples) = (vec![Vec3::ZERO; n], vec![0; n]);
     let mut stats = RenderStats::default();
-    for (tile, (tile_pixels, tile_stats)) in tiles.iter().zip(&results) {
-        copy_tile(&mut pixels, config.width, tile, tile_pixels);
-        stats.add(tile_stats);
+    for (tile, r) in tiles.iter().zip(&results) {
+        copy_tile(&mut pixels, config.width, tile, &r.pixels);
+        copy_tile(&mut samples, config.width, tile, &r.samples);
+        stats.add(&r.stats);
     }
     Ok(RenderOutput {
         width: config.width,
         height: config.height,
         pixels,
+        samples,
         stats,
         time,
     })
 }
 
-fn render_one_tile(
-    ctx: &RenderContext,
-    tile: Tile,
-    ws: &mut Workspace,
-) -> (Vec<Vec3>, RenderStats) {
-    let mut out = vec![Vec3::ZERO; tile.pixel_count()];
-    let mut stats = RenderStats::default();
-    wavefront::render_tile(ctx, tile, ws, &mut out, &mut stats);
-    (out, stats)
+struct TileResult {
+    pixels: Vec<Vec3>,
+    samples: Vec<u32>,
+    stats: RenderStats,
 }
 
-fn copy_tile(image: &mut [Vec3], image_width: u32, tile: &Tile, tile_pixels: &[Vec3]) {
+fn render_one_tile(ctx: &RenderContext, tile: Tile, ws: &mut Workspace) -> TileResult {
+    let mut r = TileResult {
+        pixels: vec![Vec3::ZERO; tile.pixel_count()],
+        samples: vec![0; tile.pixel_count()],
+        stats: RenderStats::default(),
+    };
+    wavefront::render_tile(ctx, tile, ws, &mut r.pixels, &mut r.samples, &mut r.stats);
+    r
+}
+
+fn copy_tile<T: Copy>(image: &mut [T], image_width: u32, tile: &Tile, tile_pixels: &[T]) {
     for row in 0..tile.height {
         let src = &tile_pixels[(row * tile.width) as usize..((row + 1) * tile.width) as usize];
         let dst_start = ((tile.y0 + row) * image_width + tile.x0) as usize;

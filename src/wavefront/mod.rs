@@ -43,6 +43,8 @@ pub struct RenderContext<'a> {
     pub spp: u32,
     pub light_samples: u32,
     pub max_depth: u32,
+    /// Adaptive sampling: (samples per batch, tolerance), see `PixelStats::converged`.
+    pub adaptive: Option<(u32, f32)>,
     pub seed: u64,
     /// Smallest offset for spawned rays: 1e-5 of the scene's bounding-box diagonal.
     pub scene_epsilon: f32,
@@ -133,29 +135,88 @@ pub struct Workspace {
     shadow: ShadowQueue,
     probes: ShadowQueue,
     hits: Vec<Option<Hit>>,
-    sum: Vec<Vec3>,
+    pixels: PixelStats,
 }
 
-/// Renders one tile: the mean radiance of each of its pixels, row-major, into `out`.
+/// Per-pixel running sums of one tile: radiance, and the illuminance moments that adaptive
+/// sampling tests.
+#[derive(Default)]
+pub struct PixelStats {
+    pub sum: Vec<Vec3>,
+    pub lum_sum: Vec<f64>,
+    pub lum_sq_sum: Vec<f64>,
+    pub count: Vec<u32>,
+    /// Pixels that still take samples.
+    pub active: Vec<bool>,
+}
+
+impl PixelStats {
+    fn reset(&mut self, n: usize) {
+        for v in [&mut self.lum_sum, &mut self.lum_sq_sum] {
+            v.clear();
+            v.resize(n, 0.0);
+        }
+        self.sum.clear();
+        self.sum.resize(n, Vec3::ZERO);
+        self.count.clear();
+        self.count.resize(n, 0);
+        self.active.clear();
+        self.active.resize(n, true);
+    }
+
+    /// The course's test: with mean mu and standard deviation sigma of the illuminance over a
+    /// pixel's n samples, the pixel has converged when 1.96 sigma / sqrt(n) <= tolerance * mu.
+    pub fn converged(&self, i: usize, tolerance: f32) -> bool {
+        let n = self.count[i] as f64;
+        if n < 2.0 {
+            return false;
+        }
+        let mu = self.lum_sum[i] / n;
+        let var = ((self.lum_sq_sum[i] - n * mu * mu) / (n - 1.0)).max(0.0);
+        1.96 * var.sqrt() / n.sqrt() <= tolerance as f64 * mu
+    }
+}
+
+/// Renders one tile: the mean radiance of each of its pixels, row-major, into `out`, and the
+/// number of samples each pixel took into `samples`.
 pub fn render_tile(
     ctx: &RenderContext,
     tile: Tile,
     ws: &mut Workspace,
     out: &mut [Vec3],
+    samples: &mut [u32],
     stats: &mut RenderStats,
 ) {
-    let n = tile.pixel_count();
-    ws.sum.clear();
-    ws.sum.resize(n, Vec3::ZERO);
+    ws.pixels.reset(tile.pixel_count());
     let mut first = 0;
     while first < ctx.spp {
-        let batch = SAMPLE_BATCH.min(ctx.spp - first);
+        // Batches end on multiples of the adaptive batch size, where convergence is tested.
+        let mut batch = SAMPLE_BATCH.min(ctx.spp - first);
+        if let Some((every, _)) = ctx.adaptive {
+            batch = batch.min(every - first % every);
+        }
         trace_sample_batch(ctx, tile, first, batch, ws, stats);
         first += batch;
+        if let Some((every, tolerance)) = ctx.adaptive {
+            if first % every == 0 {
+                retire_converged_pixels(&mut ws.pixels, tolerance);
+                if !ws.pixels.active.contains(&true) {
+                    break;
+                }
+            }
+        }
     }
-    let inv = 1.0 / ctx.spp as f32;
-    for (o, s) in out.iter_mut().zip(&ws.sum) {
-        *o = *s * inv;
+    for (i, (o, n)) in out.iter_mut().zip(samples.iter_mut()).enumerate() {
+        *n = ws.pixels.count[i];
+        *o = ws.pixels.sum[i] / (*n).max(1) as f32;
+    }
+}
+
+fn retire_converged_pixels(pixels: &mut PixelStats, tolerance: f32) {
+    for i in 0..pixels.active.len() {
+        if pixels.active[i] && pixels.converged(i, tolerance) {
+            pixels.active[i] = false;
+        }
     }
 }
 
@@ -168,7 +229,15 @@ fn trace_sample_batch(
     ws: &mut Workspace,
     stats: &mut RenderStats,
 ) {
-    stages::generate_camera_rays(ctx, tile, first, batch, &mut ws.paths, &mut ws.rays);
+    stages::generate_camera_rays(
+        ctx,
+        tile,
+        first,
+        batch,
+        &ws.pixels.active,
+        &mut ws.paths,
+        &mut ws.rays,
+    );
     stats.camera_rays += ws.rays.len() as u64;
     let mut depth = 0;
     while !ws.rays.is_empty() {
@@ -190,5 +259,5 @@ fn trace_sample_batch(
         stats.bounce_rays += ws.rays.len() as u64;
         depth += 1;
     }
-    stages::accumulate(&ws.paths, &mut ws.sum);
+    stages::accumulate(&ws.paths, &mut ws.pixels);
 }

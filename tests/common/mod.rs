@@ -147,3 +147,19 @@ pub fn render_pixels(
 pub const LIGHT: Integrator = Integrator::Path(DirectLighting::LightSampling);
 pub const HEMISPHERE: Integrator = Integrator::Path(DirectLighting::Hemisphere);
 pub const MIS: Integrator = Integrator::Path(DirectLighting::Mis);
+
+/// Renders and returns the whole output (pixels, per-pixel sample counts, statistics).
+pub fn render_output(
+    scene: &Scene,
+    integrator: Integrator,
+    f: impl FnOnce(&mut RenderConfig),
+) -> pathtracer::render::RenderOutput {
+    let accel = Accel::build(scene, AccelKind::Bvh);
+    let mut config = RenderConfig {
+        integrator,
+        threads: 2,
+        ..RenderConfig::default()
+    };
+    f(&mut config);
+    render(scene, &accel, &config).unwrap()
+}

@@ -3,7 +3,7 @@
 use super::super::{PathState, RayQueue, RenderContext, Tile};
 use crate::sampler::Pcg32;
 
-/// Starts one path per (pixel, sample) and queues its camera ray. With one sample per pixel the
+/// Starts one path per (active pixel, sample) and queues its camera ray. With one sample per pixel the
 /// ray goes through the pixel centre (as the course does); otherwise it is jittered uniformly
 /// within the pixel.
 pub fn generate_camera_rays(
@@ -11,6 +11,7 @@ pub fn generate_camera_rays(
     tile: Tile,
     first_sample: u32,
     batch: u32,
+    active: &[bool],
     paths: &mut PathState,
     rays: &mut RayQueue,
 ) {
@@ -19,6 +20,10 @@ pub fn generate_camera_rays(
     let width = ctx.camera.width;
     for local_y in 0..tile.height {
         for local_x in 0..tile.width {
+            let local = local_y * tile.width + local_x;
+            if !active[local as usize] {
+                continue;
+            }
             let (x, y) = (tile.x0 + local_x, tile.y0 + local_y);
             let pixel_in_image = y as u64 * width as u64 + x as u64;
             for s in first_sample..first_sample + batch {
@@ -29,7 +34,6 @@ pub fn generate_camera_rays(
                     (rng.next_f32(), rng.next_f32())
                 };
                 let ray = ctx.camera.ray_through_pixel(x as f32 + jx, y as f32 + jy);
-                let local = local_y * tile.width + local_x;
                 let id = paths.push(local, rng);
                 rays.push(ray, id);
             }
