@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::{render_pixels, SceneBuilder, HEMISPHERE, LIGHT, MIS};
+use common::{coincident_light_box, render_pixels, SceneBuilder, HEMISPHERE, LIGHT, MIS};
 use pathtracer::math::Vec3;
 use pathtracer::scene::{Light, Material, Scene};
 use std::f32::consts::PI;
@@ -66,54 +66,6 @@ fn tiny_area_light_gives_l_a_cos_cos_over_d_squared() {
     // The light subtends a tiny angle: the estimate is nearly noise-free; 1% covers the
     // finite size of the light and of the pixel footprint.
     assert!((l - want).abs() < 0.01 * want, "{l} vs {want}");
-}
-
-/// A closed box whose ceiling holds a square that is both an emissive quad (radiance L, facing
-/// down) and a scene area light of the same rectangle and radiance.
-fn coincident_light_box() -> Scene {
-    let mut b = SceneBuilder::new();
-    b.scene.camera.view_dir = Vec3::new(0.3, 0.4, 1.0).normalize();
-    let white = b.material(Material::Diffuse {
-        albedo: Vec3::splat(0.7),
-    });
-    let red = b.material(Material::Diffuse {
-        albedo: Vec3::new(0.7, 0.1, 0.1),
-    });
-    let emit = b.material(Material::Emission {
-        radiance: Vec3::splat(8.0),
-    });
-    b.horizontal_quad(0.0, (-1.0, 1.0), (-1.0, 1.0), true, white);
-    b.horizontal_quad(2.0, (-1.0, 1.0), (-1.0, 1.0), false, white);
-    // Left wall (x = -1) facing +x, back wall (z = -1) facing +z.
-    b.quad(
-        [
-            Vec3::new(-1.0, 0.0, -1.0),
-            Vec3::new(-1.0, 2.0, -1.0),
-            Vec3::new(-1.0, 2.0, 1.0),
-            Vec3::new(-1.0, 0.0, 1.0),
-        ],
-        red,
-    );
-    b.quad(
-        [
-            Vec3::new(-1.0, 0.0, -1.0),
-            Vec3::new(1.0, 0.0, -1.0),
-            Vec3::new(1.0, 2.0, -1.0),
-            Vec3::new(-1.0, 2.0, -1.0),
-        ],
-        white,
-    );
-    // The light, just below the ceiling so the ceiling does not hide it.
-    let y = 1.999;
-    b.horizontal_quad(y, (-0.3, 0.3), (-0.4, 0.4), false, emit);
-    b.light(Light::Area {
-        position: Vec3::new(0.0, y, 0.0),
-        direction: Vec3::NEG_Y,
-        dim_x: Vec3::new(0.6, 0.0, 0.0),
-        dim_y: Vec3::new(0.0, 0.0, 0.8),
-        radiance: Vec3::splat(8.0),
-    });
-    b.build()
 }
 
 /// Mean image value and its standard error, the noise variance measured from two renders with

@@ -163,3 +163,51 @@ pub fn render_output(
     f(&mut config);
     render(scene, &accel, &config).unwrap()
 }
+
+/// A closed box whose ceiling holds a square that is both an emissive quad (radiance L, facing
+/// down) and a scene area light of the same rectangle and radiance.
+pub fn coincident_light_box() -> Scene {
+    let mut b = SceneBuilder::new();
+    b.scene.camera.view_dir = Vec3::new(0.3, 0.4, 1.0).normalize();
+    let white = b.material(Material::Diffuse {
+        albedo: Vec3::splat(0.7),
+    });
+    let red = b.material(Material::Diffuse {
+        albedo: Vec3::new(0.7, 0.1, 0.1),
+    });
+    let emit = b.material(Material::Emission {
+        radiance: Vec3::splat(8.0),
+    });
+    b.horizontal_quad(0.0, (-1.0, 1.0), (-1.0, 1.0), true, white);
+    b.horizontal_quad(2.0, (-1.0, 1.0), (-1.0, 1.0), false, white);
+    // Left wall (x = -1) facing +x, back wall (z = -1) facing +z.
+    b.quad(
+        [
+            Vec3::new(-1.0, 0.0, -1.0),
+            Vec3::new(-1.0, 2.0, -1.0),
+            Vec3::new(-1.0, 2.0, 1.0),
+            Vec3::new(-1.0, 0.0, 1.0),
+        ],
+        red,
+    );
+    b.quad(
+        [
+            Vec3::new(-1.0, 0.0, -1.0),
+            Vec3::new(1.0, 0.0, -1.0),
+            Vec3::new(1.0, 2.0, -1.0),
+            Vec3::new(-1.0, 2.0, -1.0),
+        ],
+        white,
+    );
+    // The light, just below the ceiling so the ceiling does not hide it.
+    let y = 1.999;
+    b.horizontal_quad(y, (-0.3, 0.3), (-0.4, 0.4), false, emit);
+    b.light(Light::Area {
+        position: Vec3::new(0.0, y, 0.0),
+        direction: Vec3::NEG_Y,
+        dim_x: Vec3::new(0.6, 0.0, 0.0),
+        dim_y: Vec3::new(0.0, 0.0, 0.8),
+        radiance: Vec3::splat(8.0),
+    });
+    b.build()
+}

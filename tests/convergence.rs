@@ -1,0 +1,67 @@
+//! Monte Carlo convergence: for an unbiased estimator, RMSE against a converged reference falls
+//! as spp^-1/2, so log RMSE against log spp has slope -0.5.
+
+mod common;
+
+use common::{coincident_light_box, render_pixels, HEMISPHERE, LIGHT, MIS};
+use pathtracer::integrator::Integrator;
+use pathtracer::math::Vec3;
+
+const W: u32 = 24;
+const H: u32 = 18;
+
+fn render(integrator: Integrator, spp: u32, depth: u32, seed: u64) -> Vec<Vec3> {
+    let scene = coincident_light_box();
+    render_pixels(&scene, integrator, |c| {
+        (c.width, c.height, c.spp, c.max_depth, c.seed) = (W, H, spp, depth, seed)
+    })
+}
+
+fn rmse(a: &[Vec3], b: &[Vec3]) -> f64 {
+    let se: f64 = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| (*x - *y).length_squared() as f64)
+        .sum();
+    (se / (3 * a.len()) as f64).sqrt()
+}
+
+/// Least-squares slope of log RMSE against log spp. The reference's own noise is removed:
+/// MSE(n) = s2 / n + s2 / n_ref, with the per-sample variance s2 ~ 4 MSE(4) (to 0.05%).
+fn convergence_slope(integrator: Integrator, depth: u32) -> f64 {
+    let n_ref = 8192;
+    let reference = render(integrator, n_ref, depth, 1000);
+    let spps = [4u32, 8, 16, 32, 64];
+    let mse: Vec<f64> = spps
+        .iter()
+        .map(|&n| rmse(&render(integrator, n, depth, n as u64), &reference).powi(2))
+        .collect();
+    let ref_var = 4.0 * mse[0] / n_ref as f64;
+    let xs: Vec<f64> = spps.iter().map(|&n| (n as f64).ln()).collect();
+    let ys: Vec<f64> = mse
+        .iter()
+        .map(|&m| 0.5 * (m - ref_var).max(1e-30).ln())
+        .collect();
+    let (mx, my) = (xs.iter().sum::<f64>() / 5.0, ys.iter().sum::<f64>() / 5.0);
+    let sxy: f64 = xs.iter().zip(&ys).map(|(x, y)| (x - mx) * (y - my)).sum();
+    let sxx: f64 = xs.iter().map(|x| (x - mx).powi(2)).sum();
+    sxy / sxx
+}
+
+#[test]
+fn every_unbiased_integrator_converges_at_the_monte_carlo_rate() {
+    for (name, integrator, depth) in [
+        ("light sampling, direct", LIGHT, 1),
+        ("hemisphere sampling, direct", HEMISPHERE, 1),
+        ("mis, direct", MIS, 1),
+        ("path tracing -m 4", LIGHT, 4),
+        ("mis path tracing -m 4", MIS, 4),
+    ] {
+        let slope = convergence_slope(integrator, depth);
+        eprintln!("{name}: slope {slope:.3}");
+        assert!(
+            (slope + 0.5).abs() <= 0.05,
+            "{name}: log RMSE vs log spp slope {slope:.3}, want -0.5 +- 0.05"
+        );
+    }
+}
