@@ -82,39 +82,22 @@ fn run(args: &[String]) -> Result<()> {
 
 fn print_info(cli: &Cli) -> Result<()> {
     let scene = scene::collada::load(&cli.scene)?;
-    print!(
-        "{}",
-        scene::info::summary(&scene, cli.config.width, cli.config.height)
-    );
+    print!("{}", scene::info::summary(&scene, cli.config.width, cli.config.height));
     Ok(())
 }
 
 fn render_to_file(cli: &Cli) -> Result<()> {
-    let output = cli
-        .output
-        .clone()
-        .unwrap_or_else(|| default_output(&cli.scene));
+    let output = cli.output.clone().unwrap_or_else(|| default_output(&cli.scene));
     check_output_path(&output)?;
     let config = &cli.config;
-    let threads = if config.threads == 0 {
-        available_threads()
-    } else {
-        config.threads
-    };
+    let threads = if config.threads == 0 { available_threads() } else { config.threads };
     println!("[PathTracer] Input scene file: {}", cli.scene.display());
     println!("[PathTracer] Rendering using {threads} threads");
 
     let t0 = Instant::now();
     let scene = scene::collada::load(&cli.scene)?;
-    println!(
-        "[PathTracer] Collecting primitives... Done! ({:.4} sec)",
-        t0.elapsed().as_secs_f64()
-    );
-    for w in scene
-        .warnings
-        .iter()
-        .chain(&lighting_warnings(&scene, config.integrator))
-    {
+    println!("[PathTracer] Collecting primitives... Done! ({:.4} sec)", t0.elapsed().as_secs_f64());
+    for w in scene.warnings.iter().chain(&lighting_warnings(&scene, config.integrator)) {
         eprintln!("warning: {}: {w}", cli.scene.display());
     }
 
@@ -169,31 +152,19 @@ fn available_threads() -> usize {
 
 /// `dir/scene.dae` -> `scene.png` in the current directory.
 fn default_output(scene: &Path) -> PathBuf {
-    let stem = scene
-        .file_stem()
-        .map_or("out".into(), |s| s.to_string_lossy().into_owned());
+    let stem = scene.file_stem().map_or("out".into(), |s| s.to_string_lossy().into_owned());
     PathBuf::from(format!("{stem}.png"))
 }
 
 /// Fail before rendering (not after minutes of work) if the output cannot be written.
 fn check_output_path(path: &Path) -> Result<()> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     if !matches!(ext.as_deref(), Some("png") | Some("exr")) {
         bail!("-f {}: output must end in .png or .exr", path.display());
     }
-    let parent = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
+    let parent = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
     if !parent.is_dir() {
-        bail!(
-            "-f {}: directory {} does not exist",
-            path.display(),
-            parent.display()
-        );
+        bail!("-f {}: directory {} does not exist", path.display(), parent.display());
     }
     Ok(())
 }
@@ -215,10 +186,8 @@ fn parse_args(args: &[String]) -> Result<Cli> {
     let mut scene = None;
     let mut it = args.iter().map(String::as_str);
     while let Some(arg) = it.next() {
-        let mut value = |name: &str| {
-            it.next()
-                .ok_or_else(|| Error::new(format!("{name} needs a value")))
-        };
+        let mut value =
+            |name: &str| it.next().ok_or_else(|| Error::new(format!("{name} needs a value")));
         match arg {
             "-t" => cli.config.threads = parse_in_range("-t", value("-t")?, 1, 1024)? as usize,
             "-s" => cli.config.spp = parse_in_range("-s", value("-s")?, 1, 1 << 20)?,
@@ -250,10 +219,7 @@ fn parse_args(args: &[String]) -> Result<Cli> {
             a if a.starts_with('-') && a.len() > 1 => bail!("unknown option '{a}' (see --help)"),
             path => {
                 if let Some(first) = scene.replace(PathBuf::from(path)) {
-                    bail!(
-                        "more than one scene file given: '{}' and '{path}'",
-                        first.display()
-                    );
+                    bail!("more than one scene file given: '{}' and '{path}'", first.display());
                 }
             }
         }
@@ -261,10 +227,7 @@ fn parse_args(args: &[String]) -> Result<Cli> {
     cli.scene = scene.ok_or_else(|| Error::new("no scene file given (see --help)"))?;
     if cli.hemisphere {
         if cli.config.integrator != Integrator::Path(DirectLighting::LightSampling) {
-            bail!(
-                "-H conflicts with --shading {}",
-                cli.config.integrator.name()
-            );
+            bail!("-H conflicts with --shading {}", cli.config.integrator.name());
         }
         cli.config.integrator = Integrator::Path(DirectLighting::Hemisphere);
     }
@@ -325,8 +288,7 @@ fn lighting_warnings(scene: &scene::Scene, integrator: Integrator) -> Vec<String
 }
 
 fn parse_number<T: std::str::FromStr>(flag: &str, text: &str) -> Result<T> {
-    text.parse()
-        .map_err(|_| Error::new(format!("{flag}: '{text}' is not a valid number")))
+    text.parse().map_err(|_| Error::new(format!("{flag}: '{text}' is not a valid number")))
 }
 
 fn parse_in_range(flag: &str, text: &str, lo: u32, hi: u32) -> Result<u32> {
@@ -347,15 +309,10 @@ mod tests {
 
     #[test]
     fn course_flags_parse() {
-        let cli = parse_args(&args(
-            "-t 8 -s 64 -l 32 -m 6 -H -f out.png -r 480 360 scene.dae",
-        ))
-        .unwrap();
+        let cli =
+            parse_args(&args("-t 8 -s 64 -l 32 -m 6 -H -f out.png -r 480 360 scene.dae")).unwrap();
         let c = &cli.config;
-        assert_eq!(
-            (c.threads, c.spp, c.light_samples, c.max_depth),
-            (8, 64, 32, 6)
-        );
+        assert_eq!((c.threads, c.spp, c.light_samples, c.max_depth), (8, 64, 32, 6));
         assert_eq!(c.integrator, Integrator::Path(DirectLighting::Hemisphere));
         assert_eq!((c.width, c.height), (480, 360));
         assert_eq!(cli.output.as_deref(), Some(Path::new("out.png")));
@@ -401,9 +358,7 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains(".png or .exr"));
-        let e = check_output_path(Path::new("/no/such/dir/a.png"))
-            .unwrap_err()
-            .to_string();
+        let e = check_output_path(Path::new("/no/such/dir/a.png")).unwrap_err().to_string();
         assert!(e.contains("does not exist"), "{e}");
     }
 }

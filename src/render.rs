@@ -126,14 +126,7 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         copy_tile(&mut samples, config.width, tile, &r.samples);
         stats.add(&r.stats);
     }
-    Ok(RenderOutput {
-        width: config.width,
-        height: config.height,
-        pixels,
-        samples,
-        stats,
-        time,
-    })
+    Ok(RenderOutput { width: config.width, height: config.height, pixels, samples, stats, time })
 }
 
 struct TileResult {
@@ -177,10 +170,7 @@ fn report_progress(done: &AtomicUsize, total: usize, start: Instant) {
         {
             last_print = Instant::now();
             let pct = 100 * d / total.max(1);
-            eprint!(
-                "\r[PathTracer] Rendering... {pct:3}% ({:.1}s)",
-                start.elapsed().as_secs_f64()
-            );
+            eprint!("\r[PathTracer] Rendering... {pct:3}% ({:.1}s)", start.elapsed().as_secs_f64());
             let _ = std::io::stderr().flush();
             printed = true;
         }

@@ -11,9 +11,7 @@ use pathtracer::scene::{Light, Material};
 /// image sees the centre of the floor.)
 fn penumbra_scene() -> pathtracer::scene::Scene {
     let mut b = SceneBuilder::new();
-    let white = b.material(Material::Diffuse {
-        albedo: Vec3::splat(0.6),
-    });
+    let white = b.material(Material::Diffuse { albedo: Vec3::splat(0.6) });
     let black = b.material(Material::Diffuse { albedo: Vec3::ZERO });
     b.horizontal_quad(0.0, (-1.0, 1.0), (-1.0, 1.0), true, white);
     b.horizontal_quad(0.001, (-0.15, 0.15), (0.05, 0.25), true, black);
@@ -36,23 +34,13 @@ fn adaptive_sampling_spends_samples_where_the_noise_is() {
     });
     let counts = &out.samples;
     assert!(
-        counts
-            .iter()
-            .all(|&n| (16..=256).contains(&n) && n % 16 == 0),
+        counts.iter().all(|&n| (16..=256).contains(&n) && n % 16 == 0),
         "counts are whole batches"
     );
     // Black pixels (radiance exactly 0) converge after the first batch.
-    let background: Vec<u32> = out
-        .pixels
-        .iter()
-        .zip(counts)
-        .filter(|(p, _)| **p == Vec3::ZERO)
-        .map(|(_, &n)| n)
-        .collect();
-    assert!(
-        !background.is_empty() && background.iter().all(|&n| n == 16),
-        "{background:?}"
-    );
+    let background: Vec<u32> =
+        out.pixels.iter().zip(counts).filter(|(p, _)| **p == Vec3::ZERO).map(|(_, &n)| n).collect();
+    assert!(!background.is_empty() && background.iter().all(|&n| n == 16), "{background:?}");
     // Penumbra pixels are noisy and keep sampling; some reach the cap.
     let max = *counts.iter().max().unwrap();
     eprintln!(
@@ -62,14 +50,8 @@ fn adaptive_sampling_spends_samples_where_the_noise_is() {
     );
     assert!(max > 64, "max samples {max}");
     let total: u64 = counts.iter().map(|&n| n as u64).sum();
-    assert!(
-        total < 256 * counts.len() as u64 / 2,
-        "adaptive sampling saved less than half"
-    );
-    assert_eq!(
-        out.stats.camera_rays, total,
-        "every sample is one camera ray"
-    );
+    assert!(total < 256 * counts.len() as u64 / 2, "adaptive sampling saved less than half");
+    assert_eq!(out.stats.camera_rays, total, "every sample is one camera ray");
 }
 
 #[test]

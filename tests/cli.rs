@@ -7,10 +7,7 @@ use std::process::{Command, Output};
 mod common;
 
 fn pathtracer(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pathtracer"))
-        .args(args)
-        .output()
-        .expect("run pathtracer")
+    Command::new(env!("CARGO_BIN_EXE_pathtracer")).args(args).output().expect("run pathtracer")
 }
 
 fn scratch_dir(name: &str) -> PathBuf {
@@ -48,10 +45,7 @@ fn bad_scene_files_fail_cleanly_without_output() {
     let cases: Vec<(PathBuf, &str)> = vec![
         (dir.join("missing.dae"), "missing.dae"),
         (write(&dir, "notxml.dae", "this is not xml <"), "notxml.dae"),
-        (
-            write(&dir, "notcollada.dae", "<html><body/></html>"),
-            "COLLADA",
-        ),
+        (write(&dir, "notcollada.dae", "<html><body/></html>"), "COLLADA"),
         (
             write(
                 &dir,
@@ -104,17 +98,10 @@ fn renders_the_cornell_box_and_prints_statistics() {
         cornell().to_str().unwrap(),
     ]);
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{stdout}\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    for want in [
-        "Building BVH from",
-        "rays",
-        "million rays per second",
-        "intersection tests per ray",
-    ] {
+    assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    for want in
+        ["Building BVH from", "rays", "million rays per second", "intersection tests per ray"]
+    {
         assert!(stdout.contains(want), "missing '{want}' in:\n{stdout}");
     }
     let img = image::open(&out_png).unwrap();
@@ -128,10 +115,6 @@ fn info_reports_the_course_scene() {
     };
     let out = pathtracer(&["--info", scene.to_str().unwrap()]);
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(stdout.contains("12"), "{stdout}");
 }

@@ -18,11 +18,7 @@ fn render(integrator: Integrator, spp: u32, depth: u32, seed: u64) -> Vec<Vec3> 
 }
 
 fn rmse(a: &[Vec3], b: &[Vec3]) -> f64 {
-    let se: f64 = a
-        .iter()
-        .zip(b)
-        .map(|(x, y)| (*x - *y).length_squared() as f64)
-        .sum();
+    let se: f64 = a.iter().zip(b).map(|(x, y)| (*x - *y).length_squared() as f64).sum();
     (se / (3 * a.len()) as f64).sqrt()
 }
 
@@ -38,10 +34,7 @@ fn convergence_slope(integrator: Integrator, depth: u32) -> f64 {
         .collect();
     let ref_var = 4.0 * mse[0] / n_ref as f64;
     let xs: Vec<f64> = spps.iter().map(|&n| (n as f64).ln()).collect();
-    let ys: Vec<f64> = mse
-        .iter()
-        .map(|&m| 0.5 * (m - ref_var).max(1e-30).ln())
-        .collect();
+    let ys: Vec<f64> = mse.iter().map(|&m| 0.5 * (m - ref_var).max(1e-30).ln()).collect();
     let (mx, my) = (xs.iter().sum::<f64>() / 5.0, ys.iter().sum::<f64>() / 5.0);
     let sxy: f64 = xs.iter().zip(&ys).map(|(x, y)| (x - mx) * (y - my)).sum();
     let sxx: f64 = xs.iter().map(|x| (x - mx).powi(2)).sum();

@@ -13,18 +13,9 @@ use std::f32::consts::PI;
 /// L(m) = a/pi * i * (1 + a + ... + a^(m-1)), -> a/pi * i / (1 - a) for unlimited depth.
 fn furnace(albedo: f32, intensity: f32) -> Scene {
     let mut b = SceneBuilder::new();
-    let wall = b.material(Material::Diffuse {
-        albedo: Vec3::splat(albedo),
-    });
-    b.scene.spheres.push(Sphere {
-        center: Vec3::ZERO,
-        radius: 1.0,
-        material: wall,
-    });
-    b.light(Light::Point {
-        position: Vec3::ZERO,
-        radiance: Vec3::splat(intensity),
-    });
+    let wall = b.material(Material::Diffuse { albedo: Vec3::splat(albedo) });
+    b.scene.spheres.push(Sphere { center: Vec3::ZERO, radius: 1.0, material: wall });
+    b.light(Light::Point { position: Vec3::ZERO, radiance: Vec3::splat(intensity) });
     b.build()
 }
 
@@ -55,10 +46,7 @@ fn direct_light_inside_the_furnace_is_exact() {
     let (a, i) = (0.5, 2.0);
     let (mean, err) = mean_radiance(&furnace(a, i), 1, 1);
     let want = (a / PI * i) as f64;
-    assert!(
-        (mean - want).abs() < 1e-4 * want && err < 1e-5,
-        "{mean} +- {err} vs {want}"
-    );
+    assert!((mean - want).abs() < 1e-4 * want && err < 1e-5, "{mean} +- {err} vs {want}");
 }
 
 #[test]
@@ -71,27 +59,17 @@ fn furnace_radiance_follows_the_geometric_series() {
         let (mean, err) = mean_radiance(&scene, depth, spp);
         let bound = 4.0 * err + 1e-4 * want;
         eprintln!("-m {depth}: {mean:.5} +- {err:.5} vs {want:.5}");
-        assert!(
-            (mean - want).abs() < bound,
-            "-m {depth}: {mean} +- {err} vs {want}"
-        );
-        assert!(
-            err < 0.01 * want,
-            "-m {depth}: too noisy to be a test ({err})"
-        );
+        assert!((mean - want).abs() < bound, "-m {depth}: {mean} +- {err} vs {want}");
+        assert!(err < 0.01 * want, "-m {depth}: too noisy to be a test ({err})");
     }
 }
 
 #[test]
 fn diffuse_plane_under_ambient_sky_gives_albedo_times_radiance() {
     let mut b = SceneBuilder::new();
-    let m = b.material(Material::Diffuse {
-        albedo: Vec3::new(0.2, 0.5, 0.8),
-    });
+    let m = b.material(Material::Diffuse { albedo: Vec3::new(0.2, 0.5, 0.8) });
     b.horizontal_quad(0.0, (-1.0, 1.0), (-1.0, 1.0), true, m);
-    b.light(Light::Ambient {
-        radiance: Vec3::new(1.0, 2.0, 3.0),
-    });
+    b.light(Light::Ambient { radiance: Vec3::new(1.0, 2.0, 3.0) });
     let out = render_output(&b.build(), LIGHT, |c| {
         (c.width, c.height, c.spp, c.light_samples) = (16, 16, 4, 4)
     });

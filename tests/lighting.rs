@@ -12,9 +12,7 @@ const ALBEDO: f32 = 0.5;
 /// A large diffuse floor at y = 0 seen from straight above.
 fn floor() -> SceneBuilder {
     let mut b = SceneBuilder::new();
-    let m = b.material(Material::Diffuse {
-        albedo: Vec3::splat(ALBEDO),
-    });
+    let m = b.material(Material::Diffuse { albedo: Vec3::splat(ALBEDO) });
     b.horizontal_quad(0.0, (-1.0, 1.0), (-1.0, 1.0), true, m);
     b
 }
@@ -26,10 +24,7 @@ fn centre(pixels: &[Vec3], w: u32, h: u32) -> Vec3 {
 #[test]
 fn point_light_without_falloff_gives_albedo_over_pi_times_intensity_times_cosine() {
     let mut b = floor();
-    b.light(Light::Point {
-        position: Vec3::new(0.0, 1.0, 0.0),
-        radiance: Vec3::splat(2.0),
-    });
+    b.light(Light::Point { position: Vec3::new(0.0, 1.0, 0.0), radiance: Vec3::splat(2.0) });
     let scene = b.build();
     let px = render_pixels(&scene, LIGHT, |c| (c.width, c.height) = (33, 33));
     // The centre pixel sees a point within a pixel of the origin, straight below the light.
@@ -78,26 +73,16 @@ fn mean_and_error(
 ) -> (f64, f64) {
     let run = |seed| {
         render_pixels(scene, integrator, |c| {
-            (
-                c.width,
-                c.height,
-                c.spp,
-                c.light_samples,
-                c.max_depth,
-                c.seed,
-            ) = (24, 18, spp, 1, depth, seed)
+            (c.width, c.height, c.spp, c.light_samples, c.max_depth, c.seed) =
+                (24, 18, spp, 1, depth, seed)
         })
     };
     let (a, b) = (run(1), run(2));
     let lum = |v: &Vec3| (v.x + v.y + v.z) as f64 / 3.0;
     let n = a.len() as f64;
     let mean = a.iter().chain(&b).map(lum).sum::<f64>() / (2.0 * n);
-    let noise_var = a
-        .iter()
-        .zip(&b)
-        .map(|(x, y)| (lum(x) - lum(y)).powi(2))
-        .sum::<f64>()
-        / (2.0 * n);
+    let noise_var =
+        a.iter().zip(&b).map(|(x, y)| (lum(x) - lum(y)).powi(2)).sum::<f64>() / (2.0 * n);
     // Standard error of the mean of 2n pixels.
     (mean, (noise_var / (2.0 * n)).sqrt())
 }
@@ -110,10 +95,7 @@ fn assert_agree(name: &str, (m1, e1): (f64, f64), (m2, e2): (f64, f64)) {
         "{name}: {m1:.5} vs {m2:.5} differ by more than {bound:.5} (4 sigma)"
     );
     // The bound must be meaningful: noise well below the signal.
-    assert!(
-        bound < 0.05 * m1,
-        "{name}: noise bound {bound} too loose for mean {m1}"
-    );
+    assert!(bound < 0.05 * m1, "{name}: noise bound {bound} too loose for mean {m1}");
 }
 
 #[test]
@@ -132,14 +114,13 @@ fn light_and_mis_sampling_agree_with_global_illumination() {
     let light = mean_and_error(&scene, LIGHT, 64, 5);
     let mis = mean_and_error(&scene, MIS, 64, 5);
     assert_agree("light vs mis, -m 5", light, mis);
+    // Hemisphere sampling traces no shadow rays, so it also checks how shadow rays end near a
+    // light whose plane holds an emissive quad (light sampling and MIS share that code).
+    let hemi = mean_and_error(&scene, HEMISPHERE, 1024, 5);
+    assert_agree("light vs hemisphere, -m 5", light, hemi);
     // Indirect light adds to direct light.
     let direct = mean_and_error(&scene, LIGHT, 64, 1);
-    assert!(
-        light.0 > direct.0 * 1.05,
-        "GI {} should exceed direct {}",
-        light.0,
-        direct.0
-    );
+    assert!(light.0 > direct.0 * 1.05, "GI {} should exceed direct {}", light.0, direct.0);
 }
 
 #[test]

@@ -48,9 +48,7 @@ pub struct Accel {
 impl Accel {
     pub fn build(scene: &Scene, _kind: AccelKind) -> Accel {
         let t0 = std::time::Instant::now();
-        let tris = (0..scene.triangles.len())
-            .map(|i| scene.triangle(i))
-            .collect();
+        let tris = (0..scene.triangles.len()).map(|i| scene.triangle(i)).collect();
         Accel {
             tris,
             spheres: scene.spheres.clone(),
@@ -75,12 +73,7 @@ impl Accel {
             stats.triangle_tests += 1;
             if let Some((tt, u, v)) = mt(&r, t) {
                 r.t_max = tt;
-                best = Some(Hit {
-                    t: tt,
-                    u,
-                    v,
-                    prim: i as u32,
-                });
+                best = Some(Hit { t: tt, u, v, prim: i as u32 });
             }
         }
         for (i, s) in self.spheres.iter().enumerate() {
@@ -97,12 +90,7 @@ impl Accel {
             for t in [(-b - sq) / a, (-b + sq) / a] {
                 if t >= r.t_min && t <= r.t_max {
                     r.t_max = t;
-                    best = Some(Hit {
-                        t,
-                        u: 0.0,
-                        v: 0.0,
-                        prim: SPHERE_BIT | i as u32,
-                    });
+                    best = Some(Hit { t, u: 0.0, v: 0.0, prim: SPHERE_BIT | i as u32 });
                     break;
                 }
             }

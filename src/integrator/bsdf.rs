@@ -62,43 +62,24 @@ pub fn sample(m: &Material, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
             })
         }
         Material::Emission { .. } => None,
-        Material::Mirror { reflectance } => (wo.z > 0.0).then_some(BsdfSample {
-            wi: reflect(wo),
-            weight: reflectance,
-            pdf: 0.0,
-        }),
-        Material::Glass {
-            reflectance,
-            transmittance,
-            ior,
-            ..
-        } => {
-            let mirror = BsdfSample {
-                wi: reflect(wo),
-                weight: reflectance,
-                pdf: 0.0,
-            };
+        Material::Mirror { reflectance } => {
+            (wo.z > 0.0).then_some(BsdfSample { wi: reflect(wo), weight: reflectance, pdf: 0.0 })
+        }
+        Material::Glass { reflectance, transmittance, ior, .. } => {
+            let mirror = BsdfSample { wi: reflect(wo), weight: reflectance, pdf: 0.0 };
             match refract(wo, ior) {
                 // Total internal reflection: all light reflects.
                 None => Some(mirror),
                 // Choose the lobe with the Fresnel probability, so the weight needs no R factor.
                 Some(_) if u[2] < schlick(wo.z.abs(), ior) => Some(mirror),
-                Some((wt, eta)) => Some(BsdfSample {
-                    wi: wt,
-                    weight: transmittance / (eta * eta),
-                    pdf: 0.0,
-                }),
+                Some((wt, eta)) => {
+                    Some(BsdfSample { wi: wt, weight: transmittance / (eta * eta), pdf: 0.0 })
+                }
             }
         }
-        Material::Refraction {
-            transmittance, ior, ..
-        } => {
+        Material::Refraction { transmittance, ior, .. } => {
             let (wt, eta) = refract(wo, ior)?;
-            Some(BsdfSample {
-                wi: wt,
-                weight: transmittance / (eta * eta),
-                pdf: 0.0,
-            })
+            Some(BsdfSample { wi: wt, weight: transmittance / (eta * eta), pdf: 0.0 })
         }
         Material::Microfacet { alpha, eta, k } => {
             if wo.z <= 0.0 {
@@ -111,11 +92,7 @@ pub fn sample(m: &Material, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
             }
             let pdf = beckmann_d(alpha, h) * h.z / (4.0 * wo.dot(h));
             let f = microfacet_f(alpha, eta, k, wo, wi);
-            (pdf > 0.0).then(|| BsdfSample {
-                wi,
-                weight: f * wi.z / pdf,
-                pdf,
-            })
+            (pdf > 0.0).then(|| BsdfSample { wi, weight: f * wi.z / pdf, pdf })
         }
     }
 }
@@ -153,11 +130,7 @@ fn refract(wo: Vec3, ior: f32) -> Option<(Vec3, f32)> {
         return None;
     }
     let cos_t = (1.0 - sin2_t).sqrt();
-    let wt = Vec3::new(
-        -eta * wo.x,
-        -eta * wo.y,
-        if entering { -cos_t } else { cos_t },
-    );
+    let wt = Vec3::new(-eta * wo.x, -eta * wo.y, if entering { -cos_t } else { cos_t });
     Some((wt, eta))
 }
 
@@ -242,14 +215,9 @@ mod tests {
 
     #[test]
     fn lambertian_sampling_returns_the_albedo() {
-        let m = Material::Diffuse {
-            albedo: Vec3::new(0.2, 0.5, 0.8),
-        };
+        let m = Material::Diffuse { albedo: Vec3::new(0.2, 0.5, 0.8) };
         let a = mc_albedo(&m, Vec3::new(0.3, 0.1, 0.9).normalize(), 1000);
-        assert!(
-            (a - Vec3::new(0.2, 0.5, 0.8)).abs().max_element() < 1e-4,
-            "{a}"
-        );
+        assert!((a - Vec3::new(0.2, 0.5, 0.8)).abs().max_element() < 1e-4, "{a}");
     }
 
     #[test]
@@ -275,11 +243,7 @@ mod tests {
     #[test]
     fn microfacet_conserves_energy() {
         // A conductor with F ~ 1 (huge k) reflects at most all light; at alpha 0.2 almost all.
-        let m = Material::Microfacet {
-            alpha: 0.2,
-            eta: Vec3::ONE,
-            k: Vec3::splat(1e3),
-        };
+        let m = Material::Microfacet { alpha: 0.2, eta: Vec3::ONE, k: Vec3::splat(1e3) };
         let a = mc_albedo(&m, Vec3::new(0.3, 0.0, 0.95).normalize(), 200_000);
         assert!(a.max_element() <= 1.02 && a.min_element() > 0.85, "{a}");
     }
@@ -288,11 +252,7 @@ mod tests {
     fn beckmann_pdf_integrates_to_one() {
         // Integrate pdf(wo, wi) over the hemisphere by uniform sampling: expect <= 1 (the part of
         // the lobe below the horizon is lost), close to 1 for a smooth lobe at normal incidence.
-        let m = Material::Microfacet {
-            alpha: 0.3,
-            eta: Vec3::ONE,
-            k: Vec3::ONE,
-        };
+        let m = Material::Microfacet { alpha: 0.3, eta: Vec3::ONE, k: Vec3::ONE };
         let wo = Vec3::Z;
         let mut rng = Pcg32::new(5, 5);
         let n = 400_000;

@@ -23,6 +23,10 @@ pub struct LightSample {
     pub li: Vec3,
     /// Solid-angle pdf; 1 for delta lights, whose contribution is not divided by anything.
     pub pdf: f32,
+    /// Cosine between the light's normal and the direction back to the shading point (1 for
+    /// lights without a surface): a shadow ray must stop eps / cos short of an area light to
+    /// stay eps away from its plane.
+    pub cos_light: f32,
 }
 
 /// An emissive triangle or sphere, chosen with probability proportional to its power.
@@ -51,10 +55,7 @@ pub fn luminance(c: Vec3) -> f32 {
 impl LightSet {
     /// The scene lights, as the course samples them.
     pub fn course(scene: &Scene) -> LightSet {
-        LightSet {
-            scene_lights: scene.lights.clone(),
-            ..Default::default()
-        }
+        LightSet { scene_lights: scene.lights.clone(), ..Default::default() }
     }
 
     /// Emissive geometry as area lights, plus the scene's non-area lights.
@@ -102,12 +103,7 @@ impl LightSet {
             return None;
         }
         let pdf = self.emitter_pick_pdf(scene, e) * dist * dist / (emitter_area(scene, e) * cos_l);
-        Some(LightSample {
-            wi,
-            dist,
-            li: emitter_radiance(scene, e),
-            pdf,
-        })
+        Some(LightSample { wi, dist, li: emitter_radiance(scene, e), pdf, cos_light: cos_l })
     }
 
     /// The solid-angle pdf with which `sample_emitter` would have chosen the point that a ray
@@ -129,13 +125,7 @@ impl LightSet {
 /// Samples a scene light from shading point `p` with normal `n` (used for the sky).
 pub fn sample_scene_light(light: &Light, p: Vec3, n: Vec3, u: [f32; 2]) -> Option<LightSample> {
     match *light {
-        Light::Area {
-            position,
-            direction,
-            dim_x,
-            dim_y,
-            radiance,
-        } => {
+        Light::Area { position, direction, dim_x, dim_y, radiance } => {
             let q = position + (u[0] - 0.5) * dim_x + (u[1] - 0.5) * dim_y;
             let d = q - p;
             let dist = d.length();
@@ -148,6 +138,7 @@ pub fn sample_scene_light(light: &Light, p: Vec3, n: Vec3, u: [f32; 2]) -> Optio
                 dist,
                 li: radiance,
                 pdf: dist * dist / (area * cos_l),
+                cos_light: cos_l,
             })
         }
         Light::Point { position, radiance } => {
@@ -158,16 +149,15 @@ pub fn sample_scene_light(light: &Light, p: Vec3, n: Vec3, u: [f32; 2]) -> Optio
                 dist,
                 li: radiance,
                 pdf: 1.0,
+                cos_light: 1.0,
             })
         }
-        Light::Directional {
-            direction,
-            radiance,
-        } => Some(LightSample {
+        Light::Directional { direction, radiance } => Some(LightSample {
             wi: direction,
             dist: f32::INFINITY,
             li: radiance,
             pdf: 1.0,
+            cos_light: 1.0,
         }),
         Light::Ambient { radiance } => {
             // Cosine-weighted about the surface normal; only the upper (+Y) sky emits.
@@ -179,6 +169,7 @@ pub fn sample_scene_light(light: &Light, p: Vec3, n: Vec3, u: [f32; 2]) -> Optio
                 dist: f32::INFINITY,
                 li: radiance,
                 pdf: l.z / PI,
+                cos_light: 1.0,
             })
         }
     }

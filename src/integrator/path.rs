@@ -91,10 +91,7 @@ pub fn shade_hit(
 
     // Reflective materials are two-sided: turn the normals towards the viewer. Dielectrics keep
     // the outward normal so that the BSDF knows whether the ray enters or leaves.
-    let transmissive = matches!(
-        material,
-        Material::Glass { .. } | Material::Refraction { .. }
-    );
+    let transmissive = matches!(material, Material::Glass { .. } | Material::Refraction { .. });
     let flip = !transmissive && cos_out < 0.0;
     let sign = if flip { -1.0 } else { 1.0 };
     let ng = sign * surface.ng;
@@ -144,9 +141,7 @@ fn emission_weight(
     match direct {
         DirectLighting::Mis => {
             // Rays are unit length, so the hit distance is the ray parameter.
-            let light_pdf = ctx
-                .lights
-                .emitter_pdf(ctx.scene, surface.prim, surface.t, cos_l);
+            let light_pdf = ctx.lights.emitter_pdf(ctx.scene, surface.prim, surface.t, cos_l);
             power_heuristic(1.0, prev_bsdf_pdf, ctx.light_samples as f32, light_pdf)
         }
         _ => 0.0,
@@ -172,11 +167,7 @@ fn sample_scene_lights(
 ) {
     let rng = &mut paths.rng[path as usize];
     for light in &ctx.lights.scene_lights {
-        let n = if light.is_delta() {
-            1
-        } else {
-            ctx.light_samples
-        };
+        let n = if light.is_delta() { 1 } else { ctx.light_samples };
         for _ in 0..n {
             let u = [rng.next_f32(), rng.next_f32()];
             if let Some(ls) = sample_scene_light(light, v.p, v.frame.n, u) {
@@ -232,15 +223,22 @@ fn queue_shadow_ray(
         return;
     }
     let origin = ctx.offset_origin(v.p, v.ng, ls.wi);
-    // Stop short of the light point so that an emissive quad lying exactly in the light's plane
-    // does not shadow its own light (the write-up's EPS_F puzzle).
-    let t_max = if ls.dist.is_finite() {
-        ls.dist - ctx.ray_epsilon(v.p + ls.dist * ls.wi)
+    let (dir, t_max) = if ls.dist.is_finite() {
+        // Aim from the offset origin, and stop eps short of the light's plane measured along its
+        // normal, so that an emissive quad lying in that plane (as in the course's Cornell
+        // boxes) never shadows its own light: the write-up's EPS_F puzzle. Measuring the
+        // length from the un-offset point instead lets the two offsets cancel for rays along
+        // the normal, and then rounding decides, which shows up as noise and bias.
+        let q = v.p + ls.dist * ls.wi;
+        let d = q - origin;
+        let len = d.length();
+        (d / len, len - ctx.ray_epsilon(q) / ls.cos_light.max(1e-2))
     } else {
-        f32::INFINITY
+        (ls.wi, f32::INFINITY)
     };
-    out.shadow
-        .push(Ray::segment(origin, ls.wi, 0.0, t_max), contribution, path);
+    if t_max > 0.0 {
+        out.shadow.push(Ray::segment(origin, dir, 0.0, t_max), contribution, path);
+    }
 }
 
 /// Uniform hemisphere sampling of direct light, as the course does it: lights x `-l` rays per

@@ -12,21 +12,11 @@ pub struct Ray {
 
 impl Ray {
     pub fn new(origin: Vec3, dir: Vec3) -> Ray {
-        Ray {
-            origin,
-            dir,
-            t_min: 0.0,
-            t_max: f32::INFINITY,
-        }
+        Ray { origin, dir, t_min: 0.0, t_max: f32::INFINITY }
     }
 
     pub fn segment(origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Ray {
-        Ray {
-            origin,
-            dir,
-            t_min,
-            t_max,
-        }
+        Ray { origin, dir, t_min, t_max }
     }
 
     #[inline]

@@ -3,4 +3,4 @@
 
 mod pcg32;
 
-pub use pcg32::Pcg32;
+pub use pcg32::{splitmix64, Pcg32};

@@ -20,11 +20,7 @@ impl Default for CameraDesc {
     fn default() -> Self {
         let hfov: f32 = 50.0;
         let vfov = 2.0 * ((hfov.to_radians() / 2.0).tan() * 0.75).atan();
-        CameraDesc {
-            hfov_deg: hfov,
-            vfov_deg: vfov.to_degrees(),
-            view_dir: Vec3::NEG_Z,
-        }
+        CameraDesc { hfov_deg: hfov, vfov_deg: vfov.to_degrees(), view_dir: Vec3::NEG_Z }
     }
 }
 
@@ -71,24 +67,10 @@ impl Camera {
         let w = Vec3::new(phi.sin() * theta.sin(), phi.cos(), phi.sin() * theta.cos());
         let eye = target + r * w;
 
-        let up = if phi.sin() < 0.0 {
-            Vec3::NEG_Y
-        } else {
-            Vec3::Y
-        };
+        let up = if phi.sin() < 0.0 { Vec3::NEG_Y } else { Vec3::Y };
         let x = up.cross(w).normalize();
         let y = w.cross(x).normalize();
-        Camera {
-            eye,
-            target,
-            x,
-            y,
-            z: w,
-            tan_half_h,
-            tan_half_v,
-            width,
-            height,
-        }
+        Camera { eye, target, x, y, z: w, tan_half_h, tan_half_v, width, height }
     }
 
     /// The ray through normalised image coordinates (sx, sy) in [0, 1]^2, sy = 0 at the bottom.
@@ -108,10 +90,7 @@ impl Camera {
 
     /// Horizontal and vertical field of view for this image size, degrees.
     pub fn fov_deg(&self) -> (f32, f32) {
-        (
-            2.0 * self.tan_half_h.atan().to_degrees(),
-            2.0 * self.tan_half_v.atan().to_degrees(),
-        )
+        (2.0 * self.tan_half_h.atan().to_degrees(), 2.0 * self.tan_half_v.atan().to_degrees())
     }
 }
 
@@ -133,19 +112,12 @@ mod tests {
     use super::*;
 
     fn unit_box() -> Aabb {
-        Aabb {
-            min: Vec3::splat(-1.0),
-            max: Vec3::splat(1.0),
-        }
+        Aabb { min: Vec3::splat(-1.0), max: Vec3::splat(1.0) }
     }
 
     #[test]
     fn pixel_angle_is_kept_across_resolutions() {
-        let desc = CameraDesc {
-            hfov_deg: 49.13434,
-            vfov_deg: 30.0,
-            view_dir: Vec3::NEG_Z,
-        };
+        let desc = CameraDesc { hfov_deg: 49.13434, vfov_deg: 30.0, view_dir: Vec3::NEG_Z };
         let a = Camera::new(&desc, unit_box(), 800, 600);
         let b = Camera::new(&desc, unit_box(), 480, 360);
         // Same screen distance: tan scales with the pixel count.
@@ -160,29 +132,19 @@ mod tests {
         // 16:9 file camera: vertical angle is widened so that 800x600 keeps the full width.
         let th = (49.13434f32.to_radians() / 2.0).tan();
         let vfov = 2.0 * (th / 1.777778).atan();
-        let desc = CameraDesc {
-            hfov_deg: 49.13434,
-            vfov_deg: vfov.to_degrees(),
-            view_dir: Vec3::NEG_Z,
-        };
+        let desc =
+            CameraDesc { hfov_deg: 49.13434, vfov_deg: vfov.to_degrees(), view_dir: Vec3::NEG_Z };
         let cam = Camera::new(&desc, unit_box(), 800, 600);
         assert!((cam.tan_half_h - th).abs() < 1e-5);
     }
 
     #[test]
     fn eye_sits_behind_the_view_direction_at_one_and_a_half_diagonals() {
-        let desc = CameraDesc {
-            view_dir: Vec3::new(0.0, 0.0, -1.0),
-            ..Default::default()
-        };
+        let desc = CameraDesc { view_dir: Vec3::new(0.0, 0.0, -1.0), ..Default::default() };
         let cam = Camera::new(&desc, unit_box(), 800, 600);
         let r = 1.5 * unit_box().diagonal();
         // theta = atan2(0, -1) = pi, phi = pi/2 => w = (0, 0, -1): the eye is on -z.
-        assert!(
-            (cam.eye - Vec3::new(0.0, 0.0, -r)).length() < 1e-4,
-            "{}",
-            cam.eye
-        );
+        assert!((cam.eye - Vec3::new(0.0, 0.0, -r)).length() < 1e-4, "{}", cam.eye);
         // The centre ray looks at the target.
         let ray = cam.generate_ray(0.5, 0.5);
         assert!((ray.dir - (cam.target - cam.eye).normalize()).length() < 1e-5);

@@ -6,13 +6,7 @@ use crate::math::Vec3;
 pub enum Light {
     /// A one-sided rectangle: points `position + u * dim_x + v * dim_y`, u, v in [-1/2, 1/2],
     /// radiating `radiance` into the half-space that unit `direction` points to.
-    Area {
-        position: Vec3,
-        direction: Vec3,
-        dim_x: Vec3,
-        dim_y: Vec3,
-        radiance: Vec3,
-    },
+    Area { position: Vec3, direction: Vec3, dim_x: Vec3, dim_y: Vec3, radiance: Vec3 },
     /// A point light without distance falloff (course semantics): `radiance` arrives unscaled.
     Point { position: Vec3, radiance: Vec3 },
     /// Light from unit direction `direction` (pointing towards the light).

@@ -10,18 +10,9 @@ pub enum Material {
     /// A perfect mirror.
     Mirror { reflectance: Vec3 },
     /// A dielectric that reflects and refracts (Fresnel).
-    Glass {
-        reflectance: Vec3,
-        transmittance: Vec3,
-        roughness: f32,
-        ior: f32,
-    },
+    Glass { reflectance: Vec3, transmittance: Vec3, roughness: f32, ior: f32 },
     /// A dielectric that only refracts.
-    Refraction {
-        transmittance: Vec3,
-        roughness: f32,
-        ior: f32,
-    },
+    Refraction { transmittance: Vec3, roughness: f32, ior: f32 },
     /// A rough conductor (Beckmann/GGX `alpha`, complex index eta + i k per RGB channel).
     Microfacet { alpha: f32, eta: Vec3, k: Vec3 },
 }

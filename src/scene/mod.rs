@@ -52,8 +52,7 @@ impl Scene {
             .flat_map(|t| t.iter())
             .fold(Aabb::EMPTY, |b, &i| b.grow(self.positions[i as usize]));
         self.spheres.iter().fold(tris, |b, s| {
-            b.grow(s.center - Vec3::splat(s.radius))
-                .grow(s.center + Vec3::splat(s.radius))
+            b.grow(s.center - Vec3::splat(s.radius)).grow(s.center + Vec3::splat(s.radius))
         })
     }
 
@@ -61,18 +60,12 @@ impl Scene {
     #[inline]
     pub fn triangle(&self, i: usize) -> [Vec3; 3] {
         let [a, b, c] = self.triangles[i];
-        [
-            self.positions[a as usize],
-            self.positions[b as usize],
-            self.positions[c as usize],
-        ]
+        [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
     }
 
     /// Whether any material is emissive (emissive geometry seen by camera and BSDF rays).
     pub fn has_emissive_geometry(&self) -> bool {
-        self.materials
-            .iter()
-            .any(|m| matches!(m, Material::Emission { .. }))
+        self.materials.iter().any(|m| matches!(m, Material::Emission { .. }))
     }
 
     /// Checks the invariants every consumer relies on: indices in range, finite numbers.

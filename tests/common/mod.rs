@@ -8,18 +8,13 @@ use std::path::PathBuf;
 /// need them skip cleanly on a clone without `shared/`. `.ci/run` always has them and sets
 /// `PT_REQUIRE_SCENES=1`, which turns a missing directory into a failure.
 pub fn scenes_dir() -> Option<PathBuf> {
-    let dir = std::env::var_os("PT_SCENES")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| {
-            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes/cs184")
-        });
+    let dir = std::env::var_os("PT_SCENES").map(PathBuf::from).unwrap_or_else(|| {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes/cs184")
+    });
     if dir.is_dir() {
         Some(dir)
     } else if std::env::var_os("PT_REQUIRE_SCENES").is_some() {
-        panic!(
-            "PT_REQUIRE_SCENES is set but {} does not exist",
-            dir.display()
-        );
+        panic!("PT_REQUIRE_SCENES is set but {} does not exist", dir.display());
     } else {
         eprintln!("skipped: scenes not found at {}", dir.display());
         None
@@ -65,16 +60,8 @@ pub struct SceneBuilder {
 
 impl SceneBuilder {
     pub fn new() -> Self {
-        let camera = CameraDesc {
-            view_dir: Vec3::Y,
-            ..CameraDesc::default()
-        };
-        SceneBuilder {
-            scene: Scene {
-                camera,
-                ..Scene::default()
-            },
-        }
+        let camera = CameraDesc { view_dir: Vec3::Y, ..CameraDesc::default() };
+        SceneBuilder { scene: Scene { camera, ..Scene::default() } }
     }
 
     pub fn material(&mut self, m: Material) -> u32 {
@@ -85,9 +72,7 @@ impl SceneBuilder {
     /// A quad with corners a, b, c, d (counter-clockwise seen from its front side).
     pub fn quad(&mut self, corners: [Vec3; 4], material: u32) {
         let base = self.scene.positions.len() as u32;
-        let n = (corners[1] - corners[0])
-            .cross(corners[2] - corners[0])
-            .normalize();
+        let n = (corners[1] - corners[0]).cross(corners[2] - corners[0]).normalize();
         for c in corners {
             self.scene.positions.push(c);
             self.scene.normals.push(n);
@@ -135,11 +120,7 @@ pub fn render_pixels(
     f: impl FnOnce(&mut RenderConfig),
 ) -> Vec<Vec3> {
     let accel = Accel::build(scene, AccelKind::Bvh);
-    let mut config = RenderConfig {
-        integrator,
-        threads: 2,
-        ..RenderConfig::default()
-    };
+    let mut config = RenderConfig { integrator, threads: 2, ..RenderConfig::default() };
     f(&mut config);
     render(scene, &accel, &config).unwrap().pixels
 }
@@ -155,11 +136,7 @@ pub fn render_output(
     f: impl FnOnce(&mut RenderConfig),
 ) -> pathtracer::render::RenderOutput {
     let accel = Accel::build(scene, AccelKind::Bvh);
-    let mut config = RenderConfig {
-        integrator,
-        threads: 2,
-        ..RenderConfig::default()
-    };
+    let mut config = RenderConfig { integrator, threads: 2, ..RenderConfig::default() };
     f(&mut config);
     render(scene, &accel, &config).unwrap()
 }
@@ -169,15 +146,9 @@ pub fn render_output(
 pub fn coincident_light_box() -> Scene {
     let mut b = SceneBuilder::new();
     b.scene.camera.view_dir = Vec3::new(0.3, 0.4, 1.0).normalize();
-    let white = b.material(Material::Diffuse {
-        albedo: Vec3::splat(0.7),
-    });
-    let red = b.material(Material::Diffuse {
-        albedo: Vec3::new(0.7, 0.1, 0.1),
-    });
-    let emit = b.material(Material::Emission {
-        radiance: Vec3::splat(8.0),
-    });
+    let white = b.material(Material::Diffuse { albedo: Vec3::splat(0.7) });
+    let red = b.material(Material::Diffuse { albedo: Vec3::new(0.7, 0.1, 0.1) });
+    let emit = b.material(Material::Emission { radiance: Vec3::splat(8.0) });
     b.horizontal_quad(0.0, (-1.0, 1.0), (-1.0, 1.0), true, white);
     b.horizontal_quad(2.0, (-1.0, 1.0), (-1.0, 1.0), false, white);
     // Left wall (x = -1) facing +x, back wall (z = -1) facing +z.

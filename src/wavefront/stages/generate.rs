@@ -28,11 +28,8 @@ pub fn generate_camera_rays(
             let pixel_in_image = y as u64 * width as u64 + x as u64;
             for s in first_sample..first_sample + batch {
                 let mut rng = path_rng(ctx.seed, pixel_in_image, s, ctx.spp);
-                let (jx, jy) = if ctx.spp == 1 {
-                    (0.5, 0.5)
-                } else {
-                    (rng.next_f32(), rng.next_f32())
-                };
+                let (jx, jy) =
+                    if ctx.spp == 1 { (0.5, 0.5) } else { (rng.next_f32(), rng.next_f32()) };
                 let ray = ctx.camera.ray_through_pixel(x as f32 + jx, y as f32 + jy);
                 let id = paths.push(local, rng);
                 rays.push(ray, id);
@@ -43,5 +40,5 @@ pub fn generate_camera_rays(
 
 /// The random stream of one pixel sample: independent of tiles, threads and batch sizes.
 fn path_rng(seed: u64, pixel: u64, sample: u32, spp: u32) -> Pcg32 {
-    Pcg32::new(seed, pixel * spp as u64 + sample as u64)
+    Pcg32::for_index(seed, pixel * spp as u64 + sample as u64)
 }

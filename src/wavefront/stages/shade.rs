@@ -33,14 +33,7 @@ impl Surface {
         if hit.prim & SPHERE_BIT != 0 {
             let s = &scene.spheres[(hit.prim & !SPHERE_BIT) as usize];
             let n = ((p - s.center) / s.radius).normalize_or(Vec3::Y);
-            return Surface {
-                p,
-                ng: n,
-                ns: n,
-                material: s.material,
-                prim: hit.prim,
-                t: hit.t,
-            };
+            return Surface { p, ng: n, ns: n, material: s.material, prim: hit.prim, t: hit.t };
         }
         let i = hit.prim as usize;
         let [a, b, c] = scene.triangles[i];
@@ -50,14 +43,7 @@ impl Surface {
         let n = &scene.normals;
         let ns =
             (w * n[a as usize] + hit.u * n[b as usize] + hit.v * n[c as usize]).normalize_or(ng);
-        Surface {
-            p,
-            ng,
-            ns,
-            material: scene.triangle_materials[i],
-            prim: hit.prim,
-            t: hit.t,
-        }
+        Surface { p, ng, ns, material: scene.triangle_materials[i], prim: hit.prim, t: hit.t }
     }
 }
 
@@ -73,8 +59,7 @@ pub fn shade(
         match hit {
             Some(hit) => {
                 let surface = Surface::at(ctx.scene, ray, hit);
-                ctx.integrator
-                    .shade_hit(ctx, depth, ray, &surface, path, paths, &mut out);
+                ctx.integrator.shade_hit(ctx, depth, ray, &surface, path, paths, &mut out);
             }
             None => ctx.integrator.shade_miss(ctx, depth, ray, path, paths),
         }
