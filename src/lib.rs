@@ -11,6 +11,7 @@
 //! ```
 
 pub mod accel;
+pub mod bench;
 pub mod error;
 pub mod film;
 pub mod geometry;

@@ -65,6 +65,11 @@ impl Accel {
         self.bounds
     }
 
+    /// Bytes held by the structure (triangles and nodes).
+    pub fn memory_bytes(&self) -> usize {
+        std::mem::size_of_val(self.tris.as_slice())
+    }
+
     pub fn intersect(&self, ray: &Ray, stats: &mut TraceStats) -> Option<Hit> {
         stats.rays += 1;
         let mut r = *ray;

@@ -1,0 +1,356 @@
+//! The standard ray benchmark (`../shared/docs/BENCHMARK.md`): deterministic ray sets, the
+//! shared ray-file format, and a timed trace loop with exact counters and checksums.
+
+use std::io::Write;
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use rayon::prelude::*;
+
+use crate::accel::{Accel, TraceStats};
+use crate::math::{orthonormal_basis, Ray, Vec3};
+use crate::sampler::Pcg32;
+use crate::scene::{Camera, Light, Scene};
+
+/// The seed of the ray sets' PCG32 stream (the peer harness uses the same one).
+pub const RAY_SEED: u64 = 0x5EED_184B_E7C4_0001;
+/// The benchmark's image size.
+pub const WIDTH: u32 = 800;
+pub const HEIGHT: u32 = 600;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RaySet {
+    Primary,
+    Diffuse,
+    Shadow,
+}
+
+impl RaySet {
+    pub const ALL: [RaySet; 3] = [RaySet::Primary, RaySet::Diffuse, RaySet::Shadow];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            RaySet::Primary => "primary",
+            RaySet::Diffuse => "diffuse",
+            RaySet::Shadow => "shadow",
+        }
+    }
+
+    pub fn parse(s: &str) -> crate::Result<RaySet> {
+        RaySet::ALL.into_iter().find(|r| r.name() == s).ok_or_else(|| {
+            crate::Error::new(format!(
+                "unknown ray set '{s}' (expected primary, diffuse or shadow)"
+            ))
+        })
+    }
+
+    /// Shadow rays want only occlusion (any hit); the others the closest hit.
+    pub fn is_occlusion(self) -> bool {
+        self == RaySet::Shadow
+    }
+}
+
+/// The three standard ray sets of a scene.
+pub struct RaySets {
+    pub primary: Vec<Ray>,
+    pub diffuse: Vec<Ray>,
+    pub shadow: Vec<Ray>,
+}
+
+impl RaySets {
+    pub fn get(&self, set: RaySet) -> &[Ray] {
+        match set {
+            RaySet::Primary => &self.primary,
+            RaySet::Diffuse => &self.diffuse,
+            RaySet::Shadow => &self.shadow,
+        }
+    }
+}
+
+/// The scene's triangles only: spheres are left out of the ray benchmark.
+pub fn triangles_only(scene: &Scene) -> Scene {
+    Scene { spheres: Vec::new(), ..scene.clone() }
+}
+
+/// Generates the standard ray sets: primary rays through the pixel centres of the 800 x 600
+/// course camera (row 0 at the top), then from each primary hit one cosine-weighted diffuse
+/// ray about the geometric normal facing the incoming ray, and one shadow ray towards the
+/// benchmark light point.
+pub fn generate_ray_sets(scene: &Scene, accel: &Accel) -> RaySets {
+    let camera = Camera::new(&scene.camera, scene.bounds(), WIDTH, HEIGHT);
+    let mut primary = Vec::with_capacity((WIDTH * HEIGHT) as usize);
+    for y in 0..HEIGHT {
+        for x in 0..WIDTH {
+            primary.push(camera.ray_through_pixel(x as f32 + 0.5, y as f32 + 0.5));
+        }
+    }
+    let eps = 1e-4 * scene.bounds().diagonal();
+    let light = shadow_target(scene);
+    let mut rng = Pcg32::new(RAY_SEED, 54);
+    let (mut diffuse, mut shadow) = (Vec::new(), Vec::new());
+    let mut stats = TraceStats::default();
+    for r in &primary {
+        let Some(hit) = accel.intersect(r, &mut stats) else { continue };
+        let p = r.at(hit.t);
+        let [a, b, c] = scene.triangle(hit.prim as usize);
+        let mut n = (b - a).cross(c - a).normalize_or(Vec3::Y);
+        if n.dot(r.dir) > 0.0 {
+            n = -n;
+        }
+        let (u1, u2) = (rng.next_f32(), rng.next_f32());
+        let (t, bt) = orthonormal_basis(n);
+        let l = crate::integrator::bsdf::cosine_hemisphere(u1, u2);
+        let d = (l.x * t + l.y * bt + l.z * n).normalize();
+        diffuse.push(Ray::segment(p, d, eps, f32::INFINITY));
+        let to = light - p;
+        let dist = to.length();
+        shadow.push(Ray::segment(p, to / dist, eps, dist * (1.0 - 1e-4)));
+    }
+    RaySets { primary, diffuse, shadow }
+}
+
+/// The shadow rays' target: the centre of the first area light, else the first point light,
+/// else the centre of the bounding box's top face raised by a quarter of its height.
+pub fn shadow_target(scene: &Scene) -> Vec3 {
+    let area = scene.lights.iter().find_map(|l| match l {
+        Light::Area { position, .. } => Some(*position),
+        _ => None,
+    });
+    let point = || {
+        scene.lights.iter().find_map(|l| match l {
+            Light::Point { position, .. } => Some(*position),
+            _ => None,
+        })
+    };
+    area.or_else(point).unwrap_or_else(|| {
+        let b = scene.bounds();
+        Vec3::new(b.center().x, b.max.y + 0.25 * (b.max.y - b.min.y), b.center().z)
+    })
+}
+
+/// Bytes per ray record: `ox oy oz dx dy dz tmin tmax` as little-endian f32.
+const RECORD: usize = 32;
+
+/// Writes rays in the shared ray-file format, atomically (temp file + rename).
+pub fn write_rays(path: &Path, rays: &[Ray]) -> crate::Result<()> {
+    let mut bytes = Vec::with_capacity(rays.len() * RECORD);
+    for r in rays {
+        for f in [r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z, r.t_min, r.t_max] {
+            bytes.extend_from_slice(&f.to_le_bytes());
+        }
+    }
+    let tmp = path.with_extension(format!("rays.tmp-{}", std::process::id()));
+    let io = |e: std::io::Error| crate::Error::new(format!("{}: {e}", path.display()));
+    std::fs::File::create(&tmp).and_then(|mut f| f.write_all(&bytes)).map_err(io)?;
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        io(e)
+    })
+}
+
+/// Reads a ray file; every record must be whole and every origin and direction finite.
+pub fn read_rays(path: &Path) -> crate::Result<Vec<Ray>> {
+    let bytes =
+        std::fs::read(path).map_err(|e| crate::Error::new(format!("{}: {e}", path.display())))?;
+    if bytes.len() % RECORD != 0 {
+        crate::bail!(
+            "{}: {} bytes is not a whole number of 32-byte ray records",
+            path.display(),
+            bytes.len()
+        );
+    }
+    let f = |b: &[u8], i: usize| {
+        f32::from_le_bytes([b[4 * i], b[4 * i + 1], b[4 * i + 2], b[4 * i + 3]])
+    };
+    bytes
+        .chunks_exact(RECORD)
+        .enumerate()
+        .map(|(i, b)| {
+            let ray = Ray::segment(
+                Vec3::new(f(b, 0), f(b, 1), f(b, 2)),
+                Vec3::new(f(b, 3), f(b, 4), f(b, 5)),
+                f(b, 6),
+                f(b, 7),
+            );
+            if !ray.origin.is_finite()
+                || !ray.dir.is_finite()
+                || ray.t_min.is_nan()
+                || ray.t_max.is_nan()
+            {
+                crate::bail!(
+                    "{}: ray {i} has a non-finite origin, direction or interval",
+                    path.display()
+                );
+            }
+            Ok(ray)
+        })
+        .collect()
+}
+
+/// How rays are traversed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Traversal {
+    Single,
+    Packet4,
+    Packet8,
+}
+
+impl Traversal {
+    pub const ALL: [Traversal; 3] = [Traversal::Single, Traversal::Packet4, Traversal::Packet8];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Traversal::Single => "single",
+            Traversal::Packet4 => "packet4",
+            Traversal::Packet8 => "packet8",
+        }
+    }
+
+    /// Whether this build can trace with this traversal.
+    pub fn available(self) -> bool {
+        self == Traversal::Single
+    }
+
+    pub fn parse(s: &str) -> crate::Result<Traversal> {
+        Traversal::ALL.into_iter().find(|t| t.name() == s).ok_or_else(|| {
+            crate::Error::new(format!(
+                "unknown traversal '{s}' (expected single, packet4 or packet8)"
+            ))
+        })
+    }
+}
+
+/// What one traversal of one ray set produced: checksums and exact counters.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct TraceTotals {
+    /// Closest-hit sets: rays that hit. Shadow set: rays that are occluded.
+    pub hits: u64,
+    /// Sum of hit distances (0 for the shadow set), accumulated in f64 in ray order per chunk.
+    pub t_sum: f64,
+    pub stats: TraceStats,
+}
+
+impl TraceTotals {
+    fn add(mut self, o: TraceTotals) -> TraceTotals {
+        self.hits += o.hits;
+        self.t_sum += o.t_sum;
+        self.stats.add(&o.stats);
+        self
+    }
+}
+
+/// Rays per unit of parallel work: large enough to amortise scheduling, small enough to
+/// balance two threads on the 34k-ray sets.
+const CHUNK: usize = 2048;
+
+/// Traces `rays` once with `threads` threads (a pool the caller made).
+pub fn trace_once(
+    accel: &Accel,
+    rays: &[Ray],
+    set: RaySet,
+    traversal: Traversal,
+    pool: &rayon::ThreadPool,
+) -> TraceTotals {
+    let per_chunk: Vec<TraceTotals> = pool.install(|| {
+        rays.par_chunks(CHUNK).map(|chunk| trace_chunk(accel, chunk, set, traversal)).collect()
+    });
+    per_chunk.into_iter().fold(TraceTotals::default(), TraceTotals::add)
+}
+
+fn trace_chunk(accel: &Accel, rays: &[Ray], set: RaySet, traversal: Traversal) -> TraceTotals {
+    let mut out = TraceTotals::default();
+    match traversal {
+        Traversal::Single => {
+            for r in rays {
+                if set.is_occlusion() {
+                    out.hits += accel.occluded(r, &mut out.stats) as u64;
+                } else if let Some(h) = accel.intersect(r, &mut out.stats) {
+                    out.hits += 1;
+                    out.t_sum += h.t as f64;
+                }
+            }
+        }
+        // Callers check `Traversal::available` first.
+        Traversal::Packet4 | Traversal::Packet8 => {
+            unreachable!("packet traversal is not available yet")
+        }
+    }
+    if set.is_occlusion() {
+        out.t_sum = 0.0;
+    }
+    out
+}
+
+/// One benchmark measurement, in the units of BENCHMARK.md.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BenchResult {
+    pub scene: String,
+    pub triangles: usize,
+    pub ray_set: RaySet,
+    pub rays: usize,
+    pub threads: usize,
+    pub traversal: Traversal,
+    pub build_ms: f64,
+    pub mrays_per_s: f64,
+    pub totals: TraceTotals,
+    pub bytes_per_triangle: f64,
+}
+
+impl BenchResult {
+    pub fn node_tests_per_ray(&self) -> f64 {
+        self.totals.stats.node_tests as f64 / self.rays.max(1) as f64
+    }
+
+    pub fn triangle_tests_per_ray(&self) -> f64 {
+        self.totals.stats.triangle_tests as f64 / self.rays.max(1) as f64
+    }
+
+    /// One JSON object on one line (no external JSON crate: the fields are numbers and plain
+    /// names, escaped where they could hold a quote).
+    pub fn to_json(&self) -> String {
+        format!(
+            concat!(
+                "{{\"scene\":\"{}\",\"triangles\":{},\"ray_set\":\"{}\",\"rays\":{},\"threads\":{},",
+                "\"traversal\":\"{}\",\"build_ms\":{:.3},\"mrays_per_s\":{:.3},\"node_tests_per_ray\":{:.4},",
+                "\"triangle_tests_per_ray\":{:.4},\"hits\":{},\"t_sum\":{:.6},\"bytes_per_triangle\":{:.1}}}"
+            ),
+            self.scene.replace('\\', "\\\\").replace('"', "\\\""),
+            self.triangles,
+            self.ray_set.name(),
+            self.rays,
+            self.threads,
+            self.traversal.name(),
+            self.build_ms,
+            self.mrays_per_s,
+            self.node_tests_per_ray(),
+            self.triangle_tests_per_ray(),
+            self.totals.hits,
+            self.totals.t_sum,
+            self.bytes_per_triangle,
+        )
+    }
+}
+
+/// Traces once to warm caches, then `reps` timed times; returns the best time and the totals
+/// (identical every repetition: the counters are deterministic).
+pub fn time_trace(
+    accel: &Accel,
+    rays: &[Ray],
+    set: RaySet,
+    traversal: Traversal,
+    pool: &rayon::ThreadPool,
+    reps: usize,
+) -> (Duration, TraceTotals) {
+    let totals = trace_once(accel, rays, set, traversal, pool);
+    let best = (0..reps.max(1))
+        .map(|_| {
+            let t0 = Instant::now();
+            let again = trace_once(accel, rays, set, traversal, pool);
+            let dt = t0.elapsed();
+            debug_assert_eq!(again.hits, totals.hits);
+            dt
+        })
+        .min()
+        .unwrap_or_default();
+    (best, totals)
+}

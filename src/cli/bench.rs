@@ -1,0 +1,198 @@
+//! `pathtracer bench`: the standard ray benchmark of `../shared/docs/BENCHMARK.md`.
+
+use std::path::PathBuf;
+
+use super::parse_in_range;
+use pathtracer::accel::{Accel, AccelKind};
+use pathtracer::bench::{self, BenchResult, RaySet, Traversal};
+use pathtracer::{bail, scene, Error, Result};
+
+const USAGE: &str = "\
+Usage: pathtracer bench SCENE.dae [OPTIONS]
+
+Traces the standard ray sets (BENCHMARK.md) and reports throughput, exact node and triangle
+test counts per ray, and the checksums hits and t_sum. Spheres are left out.
+
+Options:
+  --ray-set primary|diffuse|shadow   one set (default: all three); shadow rays are any-hit
+  --rays-in FILE        trace the rays of FILE (32-byte records) instead; needs --ray-set
+  --rays-out PREFIX     also write PREFIX.{primary,diffuse,shadow}.rays
+  --traversal single|packet4|packet8   (default: every one this build has)
+  --threads N           worker threads (default 1)
+  --reps N              timed repetitions after a warm-up; the best counts (default 5)
+  --json                one JSON object per line on stdout (the table goes to stderr)";
+
+struct BenchArgs {
+    scene: PathBuf,
+    ray_set: Option<RaySet>,
+    rays_in: Option<PathBuf>,
+    rays_out: Option<PathBuf>,
+    traversals: Vec<Traversal>,
+    threads: usize,
+    reps: usize,
+    json: bool,
+}
+
+pub fn run(args: &[String]) -> Result<()> {
+    if args.iter().any(|a| a == "-h" || a == "--help") {
+        println!("{USAGE}");
+        return Ok(());
+    }
+    let a = parse(args)?;
+    let loaded = scene::collada::load(&a.scene)?;
+    let scene = bench::triangles_only(&loaded);
+    let accel = Accel::build(&scene, AccelKind::Bvh);
+    let build_ms = accel.build_time().as_secs_f64() * 1e3;
+
+    let sets: Vec<(RaySet, Vec<pathtracer::math::Ray>)> = match (&a.rays_in, a.ray_set) {
+        (Some(path), Some(set)) => vec![(set, bench::read_rays(path)?)],
+        (Some(_), None) => {
+            bail!("--rays-in needs --ray-set: a ray file does not say what its rays want")
+        }
+        (None, only) => {
+            let generated = bench::generate_ray_sets(&scene, &accel);
+            if let Some(prefix) = &a.rays_out {
+                for set in RaySet::ALL {
+                    let path = PathBuf::from(format!("{}.{}.rays", prefix.display(), set.name()));
+                    bench::write_rays(&path, generated.get(set))?;
+                }
+            }
+            RaySet::ALL
+                .into_iter()
+                .filter(|s| only.is_none_or(|o| o == *s))
+                .map(|s| (s, generated.get(s).to_vec()))
+                .collect()
+        }
+    };
+
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(a.threads)
+        .build()
+        .map_err(|e| Error::new(format!("cannot start {} threads: {e}", a.threads)))?;
+    let name = a
+        .scene
+        .file_name()
+        .map_or_else(|| a.scene.display().to_string(), |n| n.to_string_lossy().into_owned());
+    let mut results = Vec::new();
+    for (set, rays) in &sets {
+        for &traversal in &a.traversals {
+            let (best, totals) = bench::time_trace(&accel, rays, *set, traversal, &pool, a.reps);
+            let r = BenchResult {
+                scene: name.clone(),
+                triangles: scene.triangles.len(),
+                ray_set: *set,
+                rays: rays.len(),
+                threads: a.threads,
+                traversal,
+                build_ms,
+                mrays_per_s: rays.len() as f64 / best.as_secs_f64().max(1e-12) / 1e6,
+                totals,
+                bytes_per_triangle: accel.memory_bytes() as f64
+                    / scene.triangles.len().max(1) as f64,
+            };
+            if a.json {
+                println!("{}", r.to_json());
+            }
+            results.push(r);
+        }
+    }
+    let table = format_table(&results);
+    if a.json {
+        eprint!("{table}");
+    } else {
+        print!("{table}");
+    }
+    Ok(())
+}
+
+fn format_table(results: &[BenchResult]) -> String {
+    let mut s = format!(
+        "{:<18} {:>9} {:<8} {:>7} {:>3} {:<8} {:>9} {:>9} {:>10} {:>9} {:>8} {:>16} {:>6}\n",
+        "scene",
+        "tris",
+        "set",
+        "rays",
+        "thr",
+        "trav",
+        "build ms",
+        "Mrays/s",
+        "nodes/ray",
+        "tris/ray",
+        "hits",
+        "t_sum",
+        "B/tri"
+    );
+    for r in results {
+        s += &format!(
+            "{:<18} {:>9} {:<8} {:>7} {:>3} {:<8} {:>9.1} {:>9.2} {:>10.2} {:>9.2} {:>8} {:>16.4} {:>6.1}\n",
+            r.scene,
+            r.triangles,
+            r.ray_set.name(),
+            r.rays,
+            r.threads,
+            r.traversal.name(),
+            r.build_ms,
+            r.mrays_per_s,
+            r.node_tests_per_ray(),
+            r.triangle_tests_per_ray(),
+            r.totals.hits,
+            r.totals.t_sum,
+            r.bytes_per_triangle
+        );
+    }
+    s
+}
+
+fn parse(args: &[String]) -> Result<BenchArgs> {
+    let mut a = BenchArgs {
+        scene: PathBuf::new(),
+        ray_set: None,
+        rays_in: None,
+        rays_out: None,
+        traversals: Vec::new(),
+        threads: 1,
+        reps: 5,
+        json: false,
+    };
+    let mut scene = None;
+    let mut it = args.iter().map(String::as_str);
+    while let Some(arg) = it.next() {
+        let mut value = |name: &str| {
+            it.next().ok_or_else(|| Error::new(format!("bench: {name} needs a value")))
+        };
+        match arg {
+            "--ray-set" => a.ray_set = Some(RaySet::parse(value("--ray-set")?)?),
+            "--rays-in" => a.rays_in = Some(PathBuf::from(value("--rays-in")?)),
+            "--rays-out" => a.rays_out = Some(PathBuf::from(value("--rays-out")?)),
+            "--traversal" => {
+                let t = Traversal::parse(value("--traversal")?)?;
+                if !t.available() {
+                    bail!("bench: --traversal {} is not available in this build", t.name());
+                }
+                a.traversals.push(t);
+            }
+            "--threads" => {
+                a.threads = parse_in_range("--threads", value("--threads")?, 1, 1024)? as usize
+            }
+            "--reps" => a.reps = parse_in_range("--reps", value("--reps")?, 1, 10_000)? as usize,
+            "--json" => a.json = true,
+            s if s.starts_with('-') && s.len() > 1 => {
+                bail!("bench: unknown option '{s}' (see pathtracer bench --help)")
+            }
+            path => {
+                if let Some(first) = scene.replace(PathBuf::from(path)) {
+                    bail!("bench: more than one scene given: '{}' and '{path}'", first.display());
+                }
+            }
+        }
+    }
+    a.scene = scene
+        .ok_or_else(|| Error::new("bench: no scene file given (see pathtracer bench --help)"))?;
+    if a.rays_in.is_some() && a.rays_out.is_some() {
+        bail!("bench: --rays-out writes generated rays; it cannot be combined with --rays-in");
+    }
+    if a.traversals.is_empty() {
+        a.traversals = Traversal::ALL.into_iter().filter(|t| t.available()).collect();
+    }
+    Ok(a)
+}

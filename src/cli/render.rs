@@ -1,0 +1,340 @@
+//! `pathtracer [OPTIONS] SCENE.dae`: render a scene to an image.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use super::{parse_in_range, parse_number};
+use pathtracer::accel::{Accel, AccelKind};
+use pathtracer::integrator::{DirectLighting, Integrator};
+use pathtracer::render::{render, RenderConfig};
+use pathtracer::{bail, scene, Error, Result};
+
+const USAGE: &str = "\
+Usage: pathtracer [OPTIONS] SCENE.dae
+       pathtracer --info SCENE.dae
+       pathtracer bench SCENE.dae [BENCH OPTIONS]   (see pathtracer bench --help)
+
+Renders a CS184 COLLADA scene (course camera and lighting conventions).
+
+Course options:
+  -t N        worker threads (default: all cores)
+  -s N        samples per pixel (default 1; one sample goes through the pixel centre)
+  -l N        samples per area light (default 1)
+  -m N        maximum ray depth (default 1)
+  -H          uniform hemisphere sampling for direct light (instead of light sampling)
+  -f FILE     output image: .png (course tone map) or .exr (linear) (default: SCENE.png)
+  -r W H      image size in pixels (default 800 600)
+  -a B TOL    adaptive sampling: test convergence every B samples, stop at tolerance TOL
+
+Our options:
+  --shading MODE      normals: shading normal as colour 0.5 n + 0.5;
+                      light: sample the scene lights (default; -H switches to hemisphere);
+                      hemisphere: uniform hemisphere sampling (same as -H);
+                      mis: emissive geometry is the light, MIS with BSDF sampling
+  --seed N            random seed (default 0); same seed, same image for any -t
+  --no-bvh            test every primitive for every ray (slow; for small scenes)
+  --info              print what the scene holds and exit
+  --quiet             no progress line
+  -h, --help          this help
+  -V, --version       version";
+
+/// Largest image we accept: 16384 pixels a side and 128 megapixels (1.6 GB of linear RGB).
+const MAX_SIDE: u32 = 16_384;
+const MAX_PIXELS: u64 = 1 << 27;
+
+#[derive(Debug)]
+struct Cli {
+    scene: PathBuf,
+    output: Option<PathBuf>,
+    info: bool,
+    hemisphere: bool,
+    accel: AccelKind,
+    config: RenderConfig,
+}
+
+pub fn run(args: &[String]) -> Result<()> {
+    if args.iter().any(|a| a == "-h" || a == "--help") {
+        println!("{USAGE}");
+        return Ok(());
+    }
+    if args.iter().any(|a| a == "-V" || a == "--version") {
+        println!("pathtracer {}", env!("CARGO_PKG_VERSION"));
+        return Ok(());
+    }
+    let cli = parse_args(args)?;
+    if cli.info {
+        return print_info(&cli);
+    }
+    render_to_file(&cli)
+}
+
+fn print_info(cli: &Cli) -> Result<()> {
+    let scene = scene::collada::load(&cli.scene)?;
+    print!("{}", scene::info::summary(&scene, cli.config.width, cli.config.height));
+    Ok(())
+}
+
+fn render_to_file(cli: &Cli) -> Result<()> {
+    let output = cli.output.clone().unwrap_or_else(|| default_output(&cli.scene));
+    check_output_path(&output)?;
+    let config = &cli.config;
+    let threads = if config.threads == 0 { available_threads() } else { config.threads };
+    println!("[PathTracer] Input scene file: {}", cli.scene.display());
+    println!("[PathTracer] Rendering using {threads} threads");
+
+    let t0 = Instant::now();
+    let scene = scene::collada::load(&cli.scene)?;
+    println!("[PathTracer] Collecting primitives... Done! ({:.4} sec)", t0.elapsed().as_secs_f64());
+    for w in scene.warnings.iter().chain(&lighting_warnings(&scene, config.integrator)) {
+        eprintln!("warning: {}: {w}", cli.scene.display());
+    }
+
+    let prims = scene.triangles.len() + scene.spheres.len();
+    let accel = Accel::build(&scene, cli.accel);
+    match cli.accel {
+        AccelKind::Bvh => println!(
+            "[PathTracer] Building BVH from {prims} primitives... Done! ({:.4} sec)",
+            accel.build_time().as_secs_f64()
+        ),
+        AccelKind::BruteForce => {
+            println!("[PathTracer] No BVH (--no-bvh): {prims} primitives tested per ray")
+        }
+    }
+
+    let out = render(&scene, &accel, config)?;
+    print_render_stats(&out);
+
+    print!("[PathTracer] Saving to file: {}... ", output.display());
+    pathtracer::film::write_image(&output, out.width, out.height, &out.pixels)?;
+    println!("Done!");
+    println!("[PathTracer] Job completed.");
+    Ok(())
+}
+
+fn print_render_stats(out: &pathtracer::render::RenderOutput) {
+    let s = &out.stats;
+    let secs = out.time.as_secs_f64();
+    let rays = s.total_rays();
+    let per_ray = |n: u64| n as f64 / rays.max(1) as f64;
+    println!("[PathTracer] Rendering... 100%! ({secs:.4}s)");
+    println!(
+        "[PathTracer] BVH traced {rays} rays ({} camera, {} bounce, {} shadow, {} hemisphere).",
+        s.camera_rays, s.bounce_rays, s.shadow_rays, s.probe_rays
+    );
+    println!(
+        "[PathTracer] Average speed {:.4} million rays per second.",
+        rays as f64 / secs.max(1e-9) / 1e6
+    );
+    let prim_tests = s.trace.triangle_tests + s.trace.sphere_tests;
+    println!(
+        "[PathTracer] Averaged {:.6} intersection tests per ray ({:.6} BVH node tests + {:.6} primitive tests).",
+        per_ray(s.trace.node_tests + prim_tests),
+        per_ray(s.trace.node_tests),
+        per_ray(prim_tests)
+    );
+}
+
+fn available_threads() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
+/// `dir/scene.dae` -> `scene.png` in the current directory.
+fn default_output(scene: &Path) -> PathBuf {
+    let stem = scene.file_stem().map_or("out".into(), |s| s.to_string_lossy().into_owned());
+    PathBuf::from(format!("{stem}.png"))
+}
+
+/// Fail before rendering (not after minutes of work) if the output cannot be written.
+fn check_output_path(path: &Path) -> Result<()> {
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    if !matches!(ext.as_deref(), Some("png") | Some("exr")) {
+        bail!("-f {}: output must end in .png or .exr", path.display());
+    }
+    let parent = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    if !parent.is_dir() {
+        bail!("-f {}: directory {} does not exist", path.display(), parent.display());
+    }
+    Ok(())
+}
+
+fn parse_args(args: &[String]) -> Result<Cli> {
+    let mut cli = Cli {
+        scene: PathBuf::new(),
+        output: None,
+        info: false,
+        hemisphere: false,
+        accel: AccelKind::Bvh,
+        config: RenderConfig {
+            threads: 0,
+            progress: true,
+            integrator: Integrator::Path(DirectLighting::LightSampling),
+            ..RenderConfig::default()
+        },
+    };
+    let mut scene = None;
+    let mut it = args.iter().map(String::as_str);
+    while let Some(arg) = it.next() {
+        let mut value =
+            |name: &str| it.next().ok_or_else(|| Error::new(format!("{name} needs a value")));
+        match arg {
+            "-t" => cli.config.threads = parse_in_range("-t", value("-t")?, 1, 1024)? as usize,
+            "-s" => cli.config.spp = parse_in_range("-s", value("-s")?, 1, 1 << 20)?,
+            "-l" => cli.config.light_samples = parse_in_range("-l", value("-l")?, 1, 1 << 16)?,
+            "-m" => cli.config.max_depth = parse_in_range("-m", value("-m")?, 0, 10_000)?,
+            "-H" => cli.hemisphere = true,
+            "-f" => cli.output = Some(PathBuf::from(value("-f")?)),
+            "-r" => {
+                let w = parse_in_range("-r width", value("-r")?, 1, MAX_SIDE)?;
+                let h = parse_in_range("-r height", value("-r (height)")?, 1, MAX_SIDE)?;
+                if w as u64 * h as u64 > MAX_PIXELS {
+                    bail!("-r {w} {h}: more than {MAX_PIXELS} pixels");
+                }
+                (cli.config.width, cli.config.height) = (w, h);
+            }
+            "-a" => {
+                let batch = parse_in_range("-a batch", value("-a")?, 1, 1 << 20)?;
+                let tol: f32 = parse_number("-a tolerance", value("-a (tolerance)")?)?;
+                if !(tol.is_finite() && tol > 0.0) {
+                    bail!("-a tolerance must be a positive number, got {tol}");
+                }
+                cli.config.adaptive = Some((batch, tol));
+            }
+            "--seed" => cli.config.seed = parse_number("--seed", value("--seed")?)?,
+            "--shading" => cli.config.integrator = parse_integrator(value("--shading")?)?,
+            "--no-bvh" => cli.accel = AccelKind::BruteForce,
+            "--info" => cli.info = true,
+            "--quiet" | "-q" => cli.config.progress = false,
+            a if a.starts_with('-') && a.len() > 1 => bail!("unknown option '{a}' (see --help)"),
+            path => {
+                if let Some(first) = scene.replace(PathBuf::from(path)) {
+                    bail!("more than one scene file given: '{}' and '{path}'", first.display());
+                }
+            }
+        }
+    }
+    cli.scene = scene.ok_or_else(|| Error::new("no scene file given (see --help)"))?;
+    if cli.hemisphere {
+        if cli.config.integrator != Integrator::Path(DirectLighting::LightSampling) {
+            bail!("-H conflicts with --shading {}", cli.config.integrator.name());
+        }
+        cli.config.integrator = Integrator::Path(DirectLighting::Hemisphere);
+    }
+    Ok(cli)
+}
+
+fn parse_integrator(name: &str) -> Result<Integrator> {
+    match name {
+        "normals" => Ok(Integrator::Normals),
+        "light" => Ok(Integrator::Path(DirectLighting::LightSampling)),
+        "hemisphere" => Ok(Integrator::Path(DirectLighting::Hemisphere)),
+        "mis" => Ok(Integrator::Path(DirectLighting::Mis)),
+        other => bail!(
+            "--shading: unknown integrator '{other}' (expected normals, light, hemisphere or mis)"
+        ),
+    }
+}
+
+/// Warnings about lights an estimator cannot reach: never silently render black.
+fn lighting_warnings(scene: &scene::Scene, integrator: Integrator) -> Vec<String> {
+    let count = |kind: &str| scene.lights.iter().filter(|l| l.kind() == kind).count();
+    let mut out = Vec::new();
+    match integrator {
+        Integrator::Path(DirectLighting::Hemisphere) => {
+            let delta = count("point") + count("directional");
+            if delta > 0 {
+                out.push(format!(
+                    "uniform hemisphere sampling (-H) cannot find the scene's {delta} point/directional light(s): \
+                     a random direction never hits a delta light"
+                ));
+            }
+            let other = count("area") + count("ambient");
+            if other > 0 {
+                out.push(format!(
+                    "uniform hemisphere sampling (-H) sees only emissive geometry; the scene's {other} area/ambient \
+                     light(s) are not geometry and are reached only by light sampling"
+                ));
+            }
+            if !scene.has_emissive_geometry() {
+                out.push(
+                    "the scene has no emissive geometry: with -H the image will be black".into(),
+                );
+            }
+        }
+        Integrator::Path(DirectLighting::Mis)
+            if !scene.has_emissive_geometry() && scene.lights.is_empty() =>
+        {
+            out.push(
+                "the scene has no emissive geometry and no lights: the image will be black".into(),
+            );
+        }
+        Integrator::Path(DirectLighting::LightSampling) if scene.lights.is_empty() => {
+            out.push("the scene has no lights: light sampling will only show emissive geometry seen directly".into());
+        }
+        _ => {}
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn args(s: &str) -> Vec<String> {
+        s.split_whitespace().map(String::from).collect()
+    }
+
+    #[test]
+    fn course_flags_parse() {
+        let cli =
+            parse_args(&args("-t 8 -s 64 -l 32 -m 6 -H -f out.png -r 480 360 scene.dae")).unwrap();
+        let c = &cli.config;
+        assert_eq!((c.threads, c.spp, c.light_samples, c.max_depth), (8, 64, 32, 6));
+        assert_eq!(c.integrator, Integrator::Path(DirectLighting::Hemisphere));
+        assert_eq!((c.width, c.height), (480, 360));
+        assert_eq!(cli.output.as_deref(), Some(Path::new("out.png")));
+        assert_eq!(cli.scene, PathBuf::from("scene.dae"));
+    }
+
+    #[test]
+    fn adaptive_flag_takes_two_values() {
+        let cli = parse_args(&args("-a 64 0.05 x.dae")).unwrap();
+        assert_eq!(cli.config.adaptive, Some((64, 0.05)));
+    }
+
+    #[test]
+    fn bad_flags_are_one_line_errors() {
+        for (a, want) in [
+            ("-r 0 600 x.dae", "out of range"),
+            ("-r -5 600 x.dae", "out of range"),
+            ("-r 800 x.dae", "not a valid number"),
+            ("-s abc x.dae", "not a valid number"),
+            ("-t 0 x.dae", "out of range"),
+            ("-s 99999999999 x.dae", "out of range"),
+            ("-r 16384 16384 x.dae", "pixels"),
+            ("-a 4 nan x.dae", "positive"),
+            ("-a 4 -1 x.dae", "positive"),
+            ("--bogus x.dae", "unknown option"),
+            ("-s", "needs a value"),
+            ("a.dae b.dae", "more than one scene"),
+            ("-s 4", "no scene file"),
+            ("--shading foo x.dae", "unknown integrator"),
+            ("-H --shading mis x.dae", "conflicts"),
+        ] {
+            let err = parse_args(&args(a)).unwrap_err().to_string();
+            assert!(err.contains(want), "{a}: got '{err}', want '{want}'");
+            assert!(!err.contains('\n'));
+        }
+    }
+
+    #[test]
+    fn output_must_be_png_or_exr_in_an_existing_directory() {
+        assert!(check_output_path(Path::new("a.png")).is_ok());
+        assert!(check_output_path(Path::new("a.EXR")).is_ok());
+        assert!(check_output_path(Path::new("a.jpg"))
+            .unwrap_err()
+            .to_string()
+            .contains(".png or .exr"));
+        let e = check_output_path(Path::new("/no/such/dir/a.png")).unwrap_err().to_string();
+        assert!(e.contains("does not exist"), "{e}");
+    }
+}
