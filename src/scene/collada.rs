@@ -1,7 +1,720 @@
-//! COLLADA 1.4.1 + CGL loader (TEMPORARY stub until the loader branch lands).
-use super::Scene;
+//! The course's COLLADA 1.4.1 dialect with its `CGL` profile -> `Scene`
+//! (`../shared/docs/SCENE_FORMAT.md`). This is the only file that knows about XML.
+//!
+//! Every failure is one line naming what is wrong; `load` prefixes it with the file name.
+
+use std::collections::HashMap;
 use std::path::Path;
 
-pub fn load(path: &Path) -> crate::Result<Scene> {
-    crate::bail!("{}: loader not yet available", path.display())
+use glam::{Mat4, Vec3, Vec4};
+use roxmltree::{Document, Node};
+
+use super::{CameraDesc, Light, Material, Scene, Sphere};
+use crate::{bail, Error, Result};
+
+/// Reads and parses a scene file.
+pub fn load(path: &Path) -> Result<Scene> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| Error::new(format!("{}: cannot read: {e}", path.display())))?;
+    parse(&text).map_err(|e| e.context(path.display()))
+}
+
+/// Parses a scene from COLLADA text.
+pub fn parse(text: &str) -> Result<Scene> {
+    let doc = Document::parse(text).map_err(|e| Error::new(format!("not valid XML: {e}")))?;
+    let root = doc.root_element();
+    if root.tag_name().name() != "COLLADA" {
+        bail!("not a COLLADA file (root element is <{}>)", root.tag_name().name());
+    }
+    let mut loader = Loader {
+        ids: root.descendants().filter_map(|n| n.attribute("id").map(|id| (id, n))).collect(),
+        scene: Scene::default(),
+        materials: HashMap::new(),
+        camera: None,
+        skipped_polygons: 0,
+    };
+    let up = up_axis_matrix(root)?;
+    let visual_scene = loader.visual_scene(root)?;
+    for node in element_children(visual_scene, "node") {
+        loader.visit_node(node, up)?;
+    }
+    loader.finish()
+}
+
+/// What the loader has gathered so far.
+struct Loader<'a, 'input> {
+    ids: HashMap<&'a str, Node<'a, 'input>>,
+    scene: Scene,
+    /// Scene material index by COLLADA material id ("" is the default grey).
+    materials: HashMap<String, u32>,
+    camera: Option<CameraDesc>,
+    skipped_polygons: usize,
+}
+
+impl<'a, 'input> Loader<'a, 'input> {
+    /// The element a `#id` reference (`url`, `source`, `target`) names.
+    fn resolve(&self, reference: &str, what: &str) -> Result<Node<'a, 'input>> {
+        let id = reference.strip_prefix('#').unwrap_or(reference);
+        self.ids.get(id).copied().ok_or_else(|| {
+            Error::new(format!("{what} refers to '{reference}', which does not exist"))
+        })
+    }
+
+    fn visual_scene(&self, root: Node<'a, 'input>) -> Result<Node<'a, 'input>> {
+        let instance = child(root, "scene").and_then(|s| child(s, "instance_visual_scene"));
+        if let Some(inst) = instance {
+            let url = required_attr(inst, "url")?;
+            return self.resolve(url, "instance_visual_scene");
+        }
+        root.descendants()
+            .find(|n| {
+                n.has_tag_name(("http://www.collada.org/2005/11/COLLADASchema", "visual_scene"))
+                    || n.tag_name().name() == "visual_scene"
+            })
+            .ok_or_else(|| Error::new("no <visual_scene>: the file describes no scene"))
+    }
+
+    fn visit_node(&mut self, node: Node<'a, 'input>, parent: Mat4) -> Result<()> {
+        let name = node.attribute("id").or(node.attribute("name")).unwrap_or("?");
+        let local = node_transform(node, &mut self.scene.warnings)
+            .map_err(|e| e.context(format!("node '{name}'")))?;
+        let world = parent * local;
+        for c in node.children().filter(Node::is_element) {
+            let result = match c.tag_name().name() {
+                "instance_geometry" => self.instance_geometry(c, world),
+                "instance_light" => self.instance_light(c, world),
+                "instance_camera" => self.instance_camera(c, world),
+                "node" => self.visit_node(c, world),
+                "instance_node" => {
+                    let target = self.resolve(required_attr(c, "url")?, "instance_node")?;
+                    self.visit_node(target, world)
+                }
+                _ => Ok(()),
+            };
+            result.map_err(|e| {
+                if c.tag_name().name() == "node" {
+                    e
+                } else {
+                    e.context(format!("node '{name}'"))
+                }
+            })?;
+        }
+        Ok(())
+    }
+
+    fn instance_geometry(&mut self, inst: Node<'a, 'input>, world: Mat4) -> Result<()> {
+        let geometry = self.resolve(required_attr(inst, "url")?, "instance_geometry")?;
+        let gname = geometry.attribute("id").unwrap_or("?");
+        let bindings = material_bindings(inst);
+        if let Some(mesh) = child(geometry, "mesh") {
+            return self
+                .mesh(mesh, world, &bindings)
+                .map_err(|e| e.context(format!("geometry '{gname}'")));
+        }
+        if let Some(radius) = cgl_technique(geometry)
+            .and_then(|t| child(t, "sphere"))
+            .and_then(|s| child(s, "radius"))
+        {
+            let r = single_number(radius, "sphere radius")
+                .map_err(|e| e.context(format!("geometry '{gname}'")))?;
+            let center = world.transform_point3(Vec3::ZERO);
+            let scale = (world.transform_point3(Vec3::X) - center).length();
+            let symbol = bindings.keys().next().cloned();
+            let material = self.material_for(symbol.as_deref(), &bindings)?;
+            if !(r > 0.0) || !(scale > 0.0) {
+                bail!("geometry '{gname}': sphere radius must be positive, got {}", r * scale);
+            }
+            self.scene.spheres.push(Sphere { center, radius: r * scale, material });
+            return Ok(());
+        }
+        self.scene
+            .warnings
+            .push(format!("geometry '{gname}' is neither a mesh nor a CGL sphere: skipped"));
+        Ok(())
+    }
+
+    fn mesh(
+        &mut self,
+        mesh: Node<'a, 'input>,
+        world: Mat4,
+        bindings: &HashMap<String, String>,
+    ) -> Result<()> {
+        let vertices =
+            child(mesh, "vertices").ok_or_else(|| Error::new("mesh has no <vertices>"))?;
+        let pos_input = element_children(vertices, "input")
+            .find(|i| i.attribute("semantic") == Some("POSITION"))
+            .ok_or_else(|| Error::new("<vertices> has no POSITION input"))?;
+        let positions =
+            self.read_points(self.resolve(required_attr(pos_input, "source")?, "POSITION input")?)?;
+        let base = self.scene.positions.len() as u32;
+        self.scene.positions.extend(positions.iter().map(|&p| world.transform_point3(p)));
+
+        for prim in mesh.children().filter(Node::is_element) {
+            let kind = prim.tag_name().name();
+            if !matches!(kind, "polylist" | "triangles" | "polygons") {
+                continue;
+            }
+            let polygons = self.read_polygons(prim, vertices, positions.len())?;
+            let material = self.material_for(prim.attribute("material"), bindings)?;
+            for poly in polygons {
+                if poly.len() < 3 {
+                    self.skipped_polygons += 1;
+                    continue;
+                }
+                // Fan triangulation around the first corner.
+                for i in 1..poly.len() - 1 {
+                    self.scene.triangles.push([base + poly[0], base + poly[i], base + poly[i + 1]]);
+                    self.scene.triangle_materials.push(material);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The position indices of each polygon of a `polylist`, `triangles` or `polygons` element.
+    fn read_polygons(
+        &self,
+        prim: Node,
+        vertices: Node,
+        n_positions: usize,
+    ) -> Result<Vec<Vec<u32>>> {
+        let kind = prim.tag_name().name();
+        let inputs: Vec<Node> = element_children(prim, "input").collect();
+        let mut stride = 0;
+        let mut vertex_offset = None;
+        for input in &inputs {
+            let offset: usize = parse_attr(*input, "offset")?.unwrap_or(0);
+            stride = stride.max(offset + 1);
+            if input.attribute("semantic") == Some("VERTEX") {
+                let source = self.resolve(required_attr(*input, "source")?, "VERTEX input")?;
+                if source != vertices {
+                    bail!("<{kind}> VERTEX input does not name the mesh's <vertices>");
+                }
+                vertex_offset = Some(offset);
+            } else if let Some(src) = input.attribute("source") {
+                self.resolve(
+                    src,
+                    &format!("{} input", input.attribute("semantic").unwrap_or("?")),
+                )?;
+            }
+        }
+        let vertex_offset =
+            vertex_offset.ok_or_else(|| Error::new(format!("<{kind}> has no VERTEX input")))?;
+        let corner = |tuple: &[u32]| -> Result<u32> {
+            let i = tuple[vertex_offset];
+            if i as usize >= n_positions {
+                bail!("<{kind}> index {i} out of range ({n_positions} positions)");
+            }
+            Ok(i)
+        };
+        let corners_of = |p: &[u32],
+                          counts: &mut dyn Iterator<Item = usize>|
+         -> Result<Vec<Vec<u32>>> {
+            let mut polys = Vec::new();
+            let mut at = 0;
+            for n in counts {
+                let end = at + n * stride;
+                if end > p.len() {
+                    bail!("<{kind}> needs {end} indices but <p> has only {}", p.len());
+                }
+                polys.push(
+                    p[at..end].chunks_exact(stride).map(corner).collect::<Result<Vec<u32>>>()?,
+                );
+                at = end;
+            }
+            if at != p.len() {
+                bail!(
+                    "<{kind}> <p> has {} indices, {} more than its polygons use",
+                    p.len(),
+                    p.len() - at
+                );
+            }
+            Ok(polys)
+        };
+        match kind {
+            "polylist" => {
+                let vcount = integers(
+                    child(prim, "vcount")
+                        .ok_or_else(|| Error::new("<polylist> has no <vcount>"))?,
+                    "vcount",
+                )?;
+                let p = integers(
+                    child(prim, "p").ok_or_else(|| Error::new("<polylist> has no <p>"))?,
+                    "p",
+                )?;
+                corners_of(&p, &mut vcount.iter().map(|&n| n as usize))
+            }
+            "triangles" => {
+                let Some(p) = child(prim, "p") else { return Ok(Vec::new()) };
+                let p = integers(p, "p")?;
+                if p.len() % (3 * stride) != 0 {
+                    bail!(
+                        "<triangles> <p> has {} indices, not a multiple of 3 x {stride}",
+                        p.len()
+                    );
+                }
+                corners_of(&p, &mut std::iter::repeat_n(3, p.len() / (3 * stride)))
+            }
+            _ => {
+                let mut polys = Vec::new();
+                for p in element_children(prim, "p") {
+                    let p = integers(p, "p")?;
+                    if p.len() % stride != 0 {
+                        bail!("<polygons> <p> has {} indices, not a multiple of {stride}", p.len());
+                    }
+                    polys.extend(corners_of(&p, &mut std::iter::once(p.len() / stride))?);
+                }
+                Ok(polys)
+            }
+        }
+    }
+
+    /// 3D points from a `<source>`: its float_array read through its accessor's stride.
+    fn read_points(&self, source: Node) -> Result<Vec<Vec3>> {
+        let sid = source.attribute("id").unwrap_or("?");
+        let array = child(source, "float_array")
+            .ok_or_else(|| Error::new(format!("source '{sid}' has no <float_array>")))?;
+        let values = numbers(array, &format!("source '{sid}'"))?;
+        let accessor = child(source, "technique_common").and_then(|t| child(t, "accessor"));
+        let (count, stride) = match accessor {
+            Some(a) => (
+                parse_attr(a, "count")?.unwrap_or(values.len() / 3),
+                parse_attr(a, "stride")?.unwrap_or(3),
+            ),
+            None => (values.len() / 3, 3),
+        };
+        if stride < 3 || count.checked_mul(stride).is_none_or(|n| n > values.len()) {
+            bail!("source '{sid}': accessor count {count} x stride {stride} does not fit its {} numbers", values.len());
+        }
+        Ok(values.chunks_exact(stride).take(count).map(|c| Vec3::new(c[0], c[1], c[2])).collect())
+    }
+
+    /// The scene material for a primitive's material symbol, resolved through the instance's
+    /// `bind_material`. An unbound or absent symbol gets the default 0.5-grey Lambertian.
+    fn material_for(
+        &mut self,
+        symbol: Option<&str>,
+        bindings: &HashMap<String, String>,
+    ) -> Result<u32> {
+        let Some(target) = symbol.and_then(|s| bindings.get(s)) else {
+            return Ok(self.intern_material("", Material::Diffuse { albedo: Vec3::splat(0.5) }));
+        };
+        if let Some(&i) = self.materials.get(target.trim_start_matches('#')) {
+            return Ok(i);
+        }
+        let material = self.resolve(target, "instance_material")?;
+        let mid = material.attribute("id").unwrap_or("?").to_string();
+        let effect_url = child(material, "instance_effect")
+            .and_then(|e| e.attribute("url"))
+            .ok_or_else(|| Error::new(format!("material '{mid}' has no <instance_effect url>")))?;
+        let effect = self.resolve(effect_url, &format!("material '{mid}'"))?;
+        let m = effect_material(effect).map_err(|e| {
+            e.context(format!("effect '{}'", effect.attribute("id").unwrap_or("?")))
+        })?;
+        Ok(self.intern_material(&mid, m))
+    }
+
+    fn intern_material(&mut self, id: &str, m: Material) -> u32 {
+        if let Some(&i) = self.materials.get(id) {
+            return i;
+        }
+        self.scene.materials.push(m);
+        let i = self.scene.materials.len() as u32 - 1;
+        self.materials.insert(id.to_string(), i);
+        i
+    }
+
+    fn instance_light(&mut self, inst: Node, world: Mat4) -> Result<()> {
+        let light = self.resolve(required_attr(inst, "url")?, "instance_light")?;
+        let lid = light.attribute("id").unwrap_or("?");
+        // The CGL technique wins over technique_common.
+        let technique = cgl_technique(light).or_else(|| child(light, "technique_common"));
+        let Some(kind_node) = technique.and_then(|t| t.children().find(Node::is_element)) else {
+            self.scene.warnings.push(format!("light '{lid}' has no technique: skipped"));
+            return Ok(());
+        };
+        let color = || -> Result<Vec3> {
+            let c = child(kind_node, "color")
+                .ok_or_else(|| Error::new(format!("light '{lid}' has no <color>")))?;
+            rgb(c, &format!("light '{lid}' color"))
+        };
+        let origin = world.transform_point3(Vec3::ZERO);
+        let light = match kind_node.tag_name().name() {
+            "area" => Light::Area {
+                position: origin,
+                direction: (world.transform_point3(Vec3::NEG_Z) - origin).normalize_or(Vec3::NEG_Y),
+                dim_x: world.transform_point3(Vec3::NEG_X) - origin,
+                dim_y: world.transform_point3(Vec3::Y) - origin,
+                radiance: color()?,
+            },
+            "point" => Light::Point { position: origin, radiance: color()? },
+            "directional" => Light::Directional {
+                direction: world.transform_point3(Vec3::NEG_Z).normalize_or(Vec3::Y),
+                radiance: color()?,
+            },
+            "ambient" => Light::Ambient { radiance: color()? },
+            "spot" => {
+                self.scene.warnings.push(format!(
+                    "light '{lid}': spot lights are not supported (the course skips them): skipped"
+                ));
+                return Ok(());
+            }
+            other => {
+                self.scene.warnings.push(format!("light '{lid}': unknown kind <{other}>: skipped"));
+                return Ok(());
+            }
+        };
+        self.scene.lights.push(light);
+        Ok(())
+    }
+
+    fn instance_camera(&mut self, inst: Node, world: Mat4) -> Result<()> {
+        if self.camera.is_some() {
+            return Ok(()); // The first camera is the one.
+        }
+        let camera = self.resolve(required_attr(inst, "url")?, "instance_camera")?;
+        let cid = camera.attribute("id").unwrap_or("?");
+        let persp = child(camera, "optics")
+            .and_then(|o| child(o, "technique_common"))
+            .and_then(|t| child(t, "perspective"))
+            .ok_or_else(|| Error::new(format!("camera '{cid}' has no perspective optics")))?;
+        let value = |name: &str| {
+            child(persp, name)
+                .map(|n| single_number(n, &format!("camera '{cid}' {name}")))
+                .transpose()
+        };
+        let (xfov, yfov, aspect) = (value("xfov")?, value("yfov")?, value("aspect_ratio")?);
+        let half_tan = |deg: f32| (deg.to_radians() / 2.0).tan();
+        let from_tan = |t: f32| 2.0 * t.atan().to_degrees();
+        let (hfov, vfov) = match (xfov, yfov, aspect) {
+            (Some(x), Some(y), _) => (x, y),
+            (Some(x), None, Some(a)) if a > 0.0 => (x, from_tan(half_tan(x) / a)),
+            (None, Some(y), Some(a)) if a > 0.0 => (from_tan(half_tan(y) * a), y),
+            _ => bail!("camera '{cid}' needs xfov or yfov and a positive aspect_ratio"),
+        };
+        if !(hfov > 0.0 && hfov < 180.0 && vfov > 0.0 && vfov < 180.0) {
+            bail!("camera '{cid}': field of view {hfov} x {vfov} degrees is not in (0, 180)");
+        }
+        // The course renderer reads the view direction as the transformed point (0, 0, -1):
+        // the translation leaks in. Reproduced as SCENE_FORMAT.md says.
+        let view_dir = world.transform_point3(Vec3::NEG_Z).normalize_or(Vec3::NEG_Z);
+        self.camera = Some(CameraDesc { hfov_deg: hfov, vfov_deg: vfov, view_dir });
+        Ok(())
+    }
+
+    fn finish(mut self) -> Result<Scene> {
+        if self.skipped_polygons > 0 {
+            self.scene.warnings.push(format!(
+                "{} polygons with fewer than 3 corners were skipped",
+                self.skipped_polygons
+            ));
+        }
+        match self.camera {
+            Some(c) => self.scene.camera = c,
+            None => self
+                .scene
+                .warnings
+                .push("no camera: looking down -Z with a 50-degree field of view".into()),
+        }
+        self.scene.normals = vertex_normals(&self.scene.positions, &self.scene.triangles);
+        // Unreferenced positions (from a degenerate or skipped polygon) are harmless; positions
+        // that no triangle uses are kept so indices stay simple.
+        self.scene.validate()?;
+        Ok(self.scene)
+    }
+}
+
+/// Per-vertex shading normals as the course makes them: the sum of the (area-weighted, i.e.
+/// unnormalised cross product) normals of the faces around each vertex, normalised. A vertex
+/// whose faces cancel or have no area gets +Y rather than NaN.
+pub fn vertex_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
+    let mut sum = vec![Vec3::ZERO; positions.len()];
+    for t in triangles {
+        let [a, b, c] = t.map(|i| positions[i as usize]);
+        let n = (b - a).cross(c - a);
+        for &i in t {
+            sum[i as usize] += n;
+        }
+    }
+    sum.into_iter().map(|n| n.normalize_or(Vec3::Y)).collect()
+}
+
+/// G: the file's up axis -> our Y-up world.
+fn up_axis_matrix(root: Node) -> Result<Mat4> {
+    let up = child(root, "asset")
+        .and_then(|a| child(a, "up_axis"))
+        .and_then(|u| u.text())
+        .map(str::trim);
+    let rows = match up {
+        None | Some("Y_UP") => return Ok(Mat4::IDENTITY),
+        // (x, y, z) -> (-x, z, y)
+        Some("Z_UP") => [[-1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]],
+        // (x, y, z) -> (y, x, -z)
+        Some("X_UP") => [[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]],
+        Some(other) => bail!("unknown up_axis '{other}' (expected X_UP, Y_UP or Z_UP)"),
+    };
+    Ok(Mat4::from_cols(
+        Vec4::new(rows[0][0], rows[1][0], rows[2][0], 0.0),
+        Vec4::new(rows[0][1], rows[1][1], rows[2][1], 0.0),
+        Vec4::new(rows[0][2], rows[1][2], rows[2][2], 0.0),
+        Vec4::W,
+    ))
+}
+
+/// A node's local transform: its `matrix` (row-major), else its `translate`, `rotate` and
+/// `scale` children composed in document order. A matrix missing entries of its last row (the
+/// course's `CBgems.dae` camera has 15 numbers) gets zeros there, as the course's reader
+/// leaves them, with a warning; fewer than 12 numbers is an error.
+fn node_transform(node: Node, warnings: &mut Vec<String>) -> Result<Mat4> {
+    if let Some(m) = child(node, "matrix") {
+        let mut v = numbers(m, "matrix")?;
+        if v.len() > 16 || v.len() < 12 {
+            bail!("<matrix> has {} numbers, expected 16", v.len());
+        }
+        if v.len() < 16 {
+            let name = node.attribute("id").unwrap_or("?");
+            warnings.push(format!(
+                "node '{name}': <matrix> has {} numbers, expected 16: the rest taken as 0",
+                v.len()
+            ));
+            v.resize(16, 0.0);
+        }
+        let cols: [f32; 16] = std::array::from_fn(|i| v[i]);
+        return Ok(Mat4::from_cols_array(&cols).transpose());
+    }
+    let mut m = Mat4::IDENTITY;
+    for c in node.children().filter(Node::is_element) {
+        let name = c.tag_name().name();
+        let expect = |n: usize| -> Result<Vec<f32>> {
+            let v = numbers(c, name)?;
+            if v.len() != n {
+                bail!("<{name}> has {} numbers, expected {n}", v.len());
+            }
+            Ok(v)
+        };
+        m *= match name {
+            "translate" => Mat4::from_translation(Vec3::from_slice(&expect(3)?)),
+            "scale" => Mat4::from_scale(Vec3::from_slice(&expect(3)?)),
+            "rotate" => {
+                let v = expect(4)?;
+                let axis = Vec3::new(v[0], v[1], v[2]);
+                if axis.length_squared() == 0.0 {
+                    bail!("<rotate> has a zero axis");
+                }
+                Mat4::from_axis_angle(axis.normalize(), v[3].to_radians())
+            }
+            _ => continue,
+        };
+    }
+    Ok(m)
+}
+
+/// symbol -> material reference, from `bind_material/technique_common/instance_material`.
+fn material_bindings(inst: Node) -> HashMap<String, String> {
+    child(inst, "bind_material")
+        .and_then(|b| child(b, "technique_common"))
+        .map(|t| {
+            element_children(t, "instance_material")
+                .filter_map(|m| {
+                    Some((m.attribute("symbol")?.to_string(), m.attribute("target")?.to_string()))
+                })
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// The BSDF an effect describes: its CGL technique, else the phong/lambert/blinn diffuse colour.
+fn effect_material(effect: Node) -> Result<Material> {
+    if let Some(kind) = cgl_technique(effect).and_then(|t| t.children().find(Node::is_element)) {
+        let name = kind.tag_name().name();
+        let color = |field: &str| -> Result<Vec3> {
+            let n = child(kind, field)
+                .ok_or_else(|| Error::new(format!("CGL {name} has no <{field}>")))?;
+            rgb(n, &format!("CGL {name} {field}"))
+        };
+        let scalar = |field: &str, default: f32| -> Result<f32> {
+            child(kind, field)
+                .map_or(Ok(default), |n| single_number(n, &format!("CGL {name} {field}")))
+        };
+        return Ok(match name {
+            "emission" => Material::Emission { radiance: color("radiance")? },
+            "mirror" => Material::Mirror { reflectance: color("reflectance")? },
+            "glass" => Material::Glass {
+                reflectance: color("reflectance")?,
+                transmittance: color("transmittance")?,
+                roughness: scalar("roughness", 0.0)?,
+                ior: positive(scalar("ior", 1.5)?, "CGL glass ior")?,
+            },
+            "refraction" => Material::Refraction {
+                transmittance: color("transmittance")?,
+                roughness: scalar("roughness", 0.0)?,
+                ior: positive(scalar("ior", 1.5)?, "CGL refraction ior")?,
+            },
+            "microfacet" => Material::Microfacet {
+                alpha: positive(scalar("alpha", 0.5)?, "CGL microfacet alpha")?,
+                eta: color("eta")?,
+                k: color("k")?,
+            },
+            other => bail!("unknown CGL material <{other}>"),
+        });
+    }
+    let diffuse = child(effect, "profile_COMMON")
+        .and_then(|p| child(p, "technique"))
+        .and_then(|t| {
+            t.children().find(|c| matches!(c.tag_name().name(), "phong" | "lambert" | "blinn"))
+        })
+        .and_then(|s| child(s, "diffuse"))
+        .and_then(|d| child(d, "color"));
+    let albedo = match diffuse {
+        Some(c) => rgb(c, "diffuse color")?,
+        None => Vec3::splat(0.5),
+    };
+    Ok(Material::Diffuse { albedo })
+}
+
+fn positive(v: f32, what: &str) -> Result<f32> {
+    if v > 0.0 {
+        Ok(v)
+    } else {
+        bail!("{what} must be positive, got {v}")
+    }
+}
+
+/// `extra/technique[@profile='CGL']` of an element. The oldest course files call the profile
+/// `CMU462` (the course's earlier name); it means the same.
+fn cgl_technique<'a, 'i>(node: Node<'a, 'i>) -> Option<Node<'a, 'i>> {
+    element_children(node, "extra")
+        .flat_map(|e| element_children(e, "technique"))
+        .find(|t| matches!(t.attribute("profile"), Some("CGL") | Some("CMU462")))
+}
+
+fn child<'a, 'i>(node: Node<'a, 'i>, name: &str) -> Option<Node<'a, 'i>> {
+    node.children().find(|c| c.is_element() && c.tag_name().name() == name)
+}
+
+fn element_children<'a, 'i>(
+    node: Node<'a, 'i>,
+    name: &'static str,
+) -> impl Iterator<Item = Node<'a, 'i>> {
+    node.children().filter(move |c| c.is_element() && c.tag_name().name() == name)
+}
+
+fn required_attr<'a>(node: Node<'a, '_>, name: &str) -> Result<&'a str> {
+    node.attribute(name).ok_or_else(|| {
+        Error::new(format!("<{}> has no '{name}' attribute", node.tag_name().name()))
+    })
+}
+
+fn parse_attr<T: std::str::FromStr>(node: Node, name: &str) -> Result<Option<T>> {
+    node.attribute(name)
+        .map(|v| {
+            v.trim().parse().map_err(|_| {
+                Error::new(format!(
+                    "<{}> {name}='{v}' is not a valid number",
+                    node.tag_name().name()
+                ))
+            })
+        })
+        .transpose()
+}
+
+/// Whitespace-separated finite numbers; NaN and infinities are rejected by name.
+fn numbers(node: Node, what: &str) -> Result<Vec<f32>> {
+    node.text()
+        .unwrap_or("")
+        .split_ascii_whitespace()
+        .map(|t| match t.parse::<f32>() {
+            Ok(v) if v.is_finite() => Ok(v),
+            Ok(_) => bail!("{what}: '{t}' is not a finite number"),
+            Err(_) => bail!("{what}: '{t}' is not a number"),
+        })
+        .collect()
+}
+
+fn single_number(node: Node, what: &str) -> Result<f32> {
+    match numbers(node, what)?.as_slice() {
+        [v] => Ok(*v),
+        v => bail!("{what}: expected one number, found {}", v.len()),
+    }
+}
+
+/// The first three numbers of a colour (a fourth, alpha, is ignored).
+fn rgb(node: Node, what: &str) -> Result<Vec3> {
+    let v = numbers(node, what)?;
+    if v.len() < 3 {
+        bail!("{what}: expected 3 numbers, found {}", v.len());
+    }
+    Ok(Vec3::new(v[0], v[1], v[2]))
+}
+
+/// Non-negative integer indices.
+fn integers(node: Node, what: &str) -> Result<Vec<u32>> {
+    node.text()
+        .unwrap_or("")
+        .split_ascii_whitespace()
+        .map(|t| {
+            t.parse::<u32>().map_err(|_| {
+                Error::new(format!("<{what}>: '{t}' is not a non-negative integer index"))
+            })
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn z_up_maps_x_y_z_to_minus_x_z_y() {
+        let doc =
+            Document::parse("<COLLADA><asset><up_axis>Z_UP</up_axis></asset></COLLADA>").unwrap();
+        let g = up_axis_matrix(doc.root_element()).unwrap();
+        assert_eq!(g.transform_point3(Vec3::new(1.0, 2.0, 3.0)), Vec3::new(-1.0, 3.0, 2.0));
+        let doc =
+            Document::parse("<COLLADA><asset><up_axis>X_UP</up_axis></asset></COLLADA>").unwrap();
+        let g = up_axis_matrix(doc.root_element()).unwrap();
+        assert_eq!(g.transform_point3(Vec3::new(1.0, 2.0, 3.0)), Vec3::new(2.0, 1.0, -3.0));
+    }
+
+    #[test]
+    fn matrices_are_row_major() {
+        let doc = Document::parse("<node><matrix>1 0 0 5 0 1 0 6 0 0 1 7 0 0 0 1</matrix></node>")
+            .unwrap();
+        let m = node_transform(doc.root_element(), &mut Vec::new()).unwrap();
+        assert_eq!(m.transform_point3(Vec3::ZERO), Vec3::new(5.0, 6.0, 7.0));
+    }
+
+    #[test]
+    fn translate_rotate_scale_compose_in_document_order() {
+        let doc = Document::parse(
+            "<node><translate>1 0 0</translate><rotate>0 0 1 90</rotate><scale>2 2 2</scale></node>",
+        )
+        .unwrap();
+        let m = node_transform(doc.root_element(), &mut Vec::new()).unwrap();
+        // Scale first, then rotate (x -> y), then translate.
+        let p = m.transform_point3(Vec3::X);
+        assert!((p - Vec3::new(1.0, 2.0, 0.0)).length() < 1e-6, "{p}");
+    }
+
+    #[test]
+    fn vertex_normals_weight_faces_by_area_and_never_nan() {
+        let pos = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(0.0, 0.0, 1.0), Vec3::splat(7.0)];
+        // A big triangle in the z = 0 plane and a small one in the x = 0 plane share vertex 0.
+        let tris = [[0, 1, 2], [0, 2, 3]];
+        let n = vertex_normals(&pos, &tris);
+        assert!((n[1] - Vec3::Z).length() < 1e-6);
+        assert!((n[0] - Vec3::new(1.0, 0.0, 1.0).normalize()).length() < 1e-6);
+        assert_eq!(n[4], Vec3::Y, "unused vertex gets a unit fallback");
+    }
+
+    #[test]
+    fn numbers_reject_nan_and_words() {
+        let doc = Document::parse("<a>1 nan 2</a>").unwrap();
+        assert!(numbers(doc.root_element(), "x")
+            .unwrap_err()
+            .to_string()
+            .contains("not a finite number"));
+        let doc = Document::parse("<a>1 two</a>").unwrap();
+        assert!(numbers(doc.root_element(), "x").unwrap_err().to_string().contains("not a number"));
+    }
 }
