@@ -1,11 +1,22 @@
 //! Acceleration structure: the public surface every stage uses.
 //!
-//! PLACEHOLDER: brute force over the scene until the BVH lands (issue #2).
+//! Triangles live in a binned-SAH BVH (flat, depth-first, 32-byte nodes) over SoA triangle
+//! columns in leaf order. The course scenes hold at most a handful of analytic spheres, so
+//! they are a short list tested after the triangles rather than BVH primitives.
 
-use std::time::Duration;
+pub mod build;
+pub mod node;
+pub mod traverse_single;
 
+use std::time::{Duration, Instant};
+
+use crate::geometry::sphere::intersect_sphere;
+use crate::geometry::TriangleSoa;
 use crate::math::{Aabb, Hit, Ray};
-use crate::scene::Scene;
+use crate::scene::{Scene, Sphere};
+
+pub use build::BuildParams;
+pub use node::BvhNode;
 
 /// Sphere hits carry this bit in `Hit::prim`; the low bits are the sphere index.
 pub const SPHERE_BIT: u32 = 1 << 31;
@@ -15,12 +26,13 @@ pub const SPHERE_BIT: u32 = 1 << 31;
 pub enum AccelKind {
     #[default]
     Bvh,
-    /// Test every primitive for every ray (`--no-bvh`), the oracle for tests.
+    /// Every triangle in one leaf, tested for every ray (`--no-bvh`): the oracle for tests
+    /// and the write-up's timing comparison.
     BruteForce,
 }
 
-/// Exact work counters. `node_tests` counts ray-box tests, `triangle_tests` ray-triangle tests,
-/// `sphere_tests` ray-sphere tests, `rays` the queries made.
+/// Exact work counters. `node_tests` counts ray-box tests, `triangle_tests` ray-triangle tests
+/// (a SIMD leaf test of k triangles counts k), `sphere_tests` ray-sphere tests, `rays` queries.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct TraceStats {
     pub rays: u64,
@@ -39,17 +51,40 @@ impl TraceStats {
 }
 
 pub struct Accel {
-    tris: Vec<[glam::Vec3; 3]>,
-    spheres: Vec<crate::scene::Sphere>,
+    nodes: Vec<BvhNode>,
+    tris: TriangleSoa,
+    spheres: Vec<Sphere>,
     bounds: Aabb,
     build_time: Duration,
 }
 
 impl Accel {
-    pub fn build(scene: &Scene, _kind: AccelKind) -> Accel {
-        let t0 = std::time::Instant::now();
-        let tris = (0..scene.triangles.len()).map(|i| scene.triangle(i)).collect();
+    pub fn build(scene: &Scene, kind: AccelKind) -> Accel {
+        Accel::build_with(scene, kind, BuildParams::default())
+    }
+
+    pub fn build_with(scene: &Scene, kind: AccelKind, params: BuildParams) -> Accel {
+        let t0 = Instant::now();
+        let corners: Vec<[glam::Vec3; 3]> =
+            (0..scene.triangles.len()).map(|i| scene.triangle(i)).collect();
+        let (nodes, order) = match kind {
+            AccelKind::Bvh => {
+                let boxes: Vec<Aabb> = corners.iter().map(|c| Aabb::from_points(c)).collect();
+                let built = build::build(&boxes, params);
+                (built.nodes, built.order)
+            }
+            AccelKind::BruteForce => {
+                let b = corners.iter().fold(Aabb::EMPTY, |b, c| b.union(Aabb::from_points(c)));
+                let (min, max) =
+                    if b.is_empty() { ([0.0; 3], [0.0; 3]) } else { (b.min.into(), b.max.into()) };
+                let n = corners.len() as u32;
+                (vec![BvhNode { min, index: 0, max, count: n }], (0..n).collect())
+            }
+        };
+        let tris = TriangleSoa::from_order(&corners, &order);
+        let nodes = if tris.is_empty() { Vec::new() } else { nodes };
         Accel {
+            nodes,
             tris,
             spheres: scene.spheres.clone(),
             bounds: scene.bounds(),
@@ -65,62 +100,43 @@ impl Accel {
         self.bounds
     }
 
-    /// Bytes held by the structure (triangles and nodes).
-    pub fn memory_bytes(&self) -> usize {
-        std::mem::size_of_val(self.tris.as_slice())
+    pub fn nodes(&self) -> &[BvhNode] {
+        &self.nodes
     }
 
+    pub fn triangles(&self) -> &TriangleSoa {
+        &self.tris
+    }
+
+    /// Bytes held by the structure: nodes plus triangle columns.
+    pub fn memory_bytes(&self) -> usize {
+        self.nodes.capacity() * std::mem::size_of::<BvhNode>() + self.tris.memory_bytes()
+    }
+
+    /// The closest hit along the ray within [t_min, t_max].
     pub fn intersect(&self, ray: &Ray, stats: &mut TraceStats) -> Option<Hit> {
         stats.rays += 1;
         let mut r = *ray;
-        let mut best = None;
-        for (i, t) in self.tris.iter().enumerate() {
-            stats.triangle_tests += 1;
-            if let Some((tt, u, v)) = mt(&r, t) {
-                r.t_max = tt;
-                best = Some(Hit { t: tt, u, v, prim: i as u32 });
-            }
-        }
+        let mut best = traverse_single::intersect(&self.nodes, &self.tris, &mut r, stats);
         for (i, s) in self.spheres.iter().enumerate() {
             stats.sphere_tests += 1;
-            let oc = r.origin - s.center;
-            let a = r.dir.dot(r.dir);
-            let b = oc.dot(r.dir);
-            let c = oc.dot(oc) - s.radius * s.radius;
-            let disc = b * b - a * c;
-            if disc < 0.0 {
-                continue;
-            }
-            let sq = disc.sqrt();
-            for t in [(-b - sq) / a, (-b + sq) / a] {
-                if t >= r.t_min && t <= r.t_max {
-                    r.t_max = t;
-                    best = Some(Hit { t, u: 0.0, v: 0.0, prim: SPHERE_BIT | i as u32 });
-                    break;
-                }
+            if let Some(t) = intersect_sphere(&r, s) {
+                r.t_max = t;
+                best = Some(Hit { t, u: 0.0, v: 0.0, prim: SPHERE_BIT | i as u32 });
             }
         }
         best
     }
 
+    /// Whether anything blocks the ray within [t_min, t_max].
     pub fn occluded(&self, ray: &Ray, stats: &mut TraceStats) -> bool {
-        self.intersect(ray, stats).is_some()
+        stats.rays += 1;
+        if traverse_single::occluded(&self.nodes, &self.tris, ray, stats) {
+            return true;
+        }
+        self.spheres.iter().any(|s| {
+            stats.sphere_tests += 1;
+            intersect_sphere(ray, s).is_some()
+        })
     }
-}
-
-fn mt(r: &Ray, t: &[glam::Vec3; 3]) -> Option<(f32, f32, f32)> {
-    let e1 = t[1] - t[0];
-    let e2 = t[2] - t[0];
-    let s = r.origin - t[0];
-    let s1 = r.dir.cross(e2);
-    let s2 = s.cross(e1);
-    let det = s1.dot(e1);
-    if det == 0.0 {
-        return None;
-    }
-    let inv = 1.0 / det;
-    let tt = s2.dot(e2) * inv;
-    let u = s1.dot(s) * inv;
-    let v = s2.dot(r.dir) * inv;
-    (u >= 0.0 && v >= 0.0 && u + v <= 1.0 && tt >= r.t_min && tt <= r.t_max).then_some((tt, u, v))
 }

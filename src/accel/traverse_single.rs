@@ -1,0 +1,224 @@
+//! One ray through the flat BVH: closest hit and any hit, with a fixed stack, nearer child
+//! first, and leaves tested 8 triangles at a time.
+
+use wide::f32x8;
+
+use super::build::MAX_DEPTH;
+use super::node::BvhNode;
+use super::TraceStats;
+use crate::geometry::moller_trumbore::{intersect8, splat3, V3};
+use crate::geometry::triangles::{TriangleSoa, LANES};
+use crate::math::{Hit, Ray, Vec3};
+
+/// A ray prepared for box tests.
+pub struct RayBox {
+    origin: Vec3,
+    inv_dir: Vec3,
+    t_min: f32,
+}
+
+impl RayBox {
+    pub fn new(ray: &Ray) -> RayBox {
+        // Zero direction components give infinite reciprocals; `slab` is written so that the
+        // 0 * inf = NaN this can produce never turns a hit into a miss.
+        RayBox { origin: ray.origin, inv_dir: ray.dir.recip(), t_min: ray.t_min }
+    }
+
+    /// Entry distance into the node's box, or infinity if the ray misses it within
+    /// [t_min, t_max].
+    #[inline(always)]
+    pub fn slab(&self, n: &BvhNode, t_max: f32) -> f32 {
+        let t1 = (Vec3::from(n.min) - self.origin) * self.inv_dir;
+        let t2 = (Vec3::from(n.max) - self.origin) * self.inv_dir;
+        // f32::min/max ignore a NaN operand, so a NaN slab (origin on the plane of a box face,
+        // direction parallel to it) does not cut the interval.
+        let near = t1.min(t2).max_element().max(self.t_min);
+        let far = t1.max(t2).min_element().min(t_max);
+        if near <= far {
+            near
+        } else {
+            f32::INFINITY
+        }
+    }
+}
+
+/// Lane mask for the first `n` lanes.
+#[inline(always)]
+fn first_lanes(n: usize) -> f32x8 {
+    const ON: f32 = f32::from_bits(!0);
+    f32x8::new(std::array::from_fn(|i| if i < n { ON } else { 0.0 }))
+}
+
+#[inline(always)]
+fn load8(col: &[f32], at: usize) -> f32x8 {
+    let a: [f32; LANES] = col[at..at + LANES].try_into().expect("columns are padded by LANES");
+    f32x8::new(a)
+}
+
+#[inline(always)]
+fn load3(cols: &[Vec<f32>; 3], at: usize) -> V3<f32x8> {
+    V3 { x: load8(&cols[0], at), y: load8(&cols[1], at), z: load8(&cols[2], at) }
+}
+
+/// Tests the leaf's triangles 8 at a time; shrinks `ray.t_max` and records the closest hit.
+#[inline]
+fn intersect_leaf(
+    tris: &TriangleSoa,
+    n: &BvhNode,
+    ray: &mut Ray,
+    best: &mut Option<Hit>,
+    stats: &mut TraceStats,
+) {
+    let (o, d) = (splat3(ray.origin), splat3(ray.dir));
+    let (first, count) = (n.index as usize, n.count as usize);
+    stats.triangle_tests += count as u64;
+    for at in (first..first + count).step_by(LANES) {
+        let valid = first_lanes(first + count - at);
+        let (mask, t, u, v) = intersect8(
+            o,
+            d,
+            load3(&tris.v0, at),
+            load3(&tris.e1, at),
+            load3(&tris.e2, at),
+            f32x8::splat(ray.t_min),
+            f32x8::splat(ray.t_max),
+            valid,
+        );
+        let bits = mask.to_bitmask();
+        if bits == 0 {
+            continue;
+        }
+        // The nearest hit lane; among equal distances the first (lowest index) wins.
+        let ts = mask.select(t, f32x8::splat(f32::INFINITY)).to_array();
+        let mut k = bits.trailing_zeros() as usize;
+        for lane in k + 1..LANES {
+            if bits & (1 << lane) != 0 && ts[lane] < ts[k] {
+                k = lane;
+            }
+        }
+        ray.t_max = ts[k];
+        *best =
+            Some(Hit { t: ts[k], u: u.to_array()[k], v: v.to_array()[k], prim: tris.prim[at + k] });
+    }
+}
+
+/// Whether any of the leaf's triangles blocks the ray.
+#[inline]
+fn occluded_leaf(tris: &TriangleSoa, n: &BvhNode, ray: &Ray, stats: &mut TraceStats) -> bool {
+    let (o, d) = (splat3(ray.origin), splat3(ray.dir));
+    let (first, count) = (n.index as usize, n.count as usize);
+    let (t_min, t_max) = (f32x8::splat(ray.t_min), f32x8::splat(ray.t_max));
+    for at in (first..first + count).step_by(LANES) {
+        stats.triangle_tests += (first + count - at).min(LANES) as u64;
+        let valid = first_lanes(first + count - at);
+        let (mask, ..) = intersect8(
+            o,
+            d,
+            load3(&tris.v0, at),
+            load3(&tris.e1, at),
+            load3(&tris.e2, at),
+            t_min,
+            t_max,
+            valid,
+        );
+        if mask.any() {
+            return true;
+        }
+    }
+    false
+}
+
+/// Closest hit among the triangles; `ray.t_max` shrinks to the hit distance.
+pub fn intersect(
+    nodes: &[BvhNode],
+    tris: &TriangleSoa,
+    ray: &mut Ray,
+    stats: &mut TraceStats,
+) -> Option<Hit> {
+    let rb = RayBox::new(ray);
+    let mut best = None;
+    stats.node_tests += 1;
+    if nodes.is_empty() || rb.slab(&nodes[0], ray.t_max) == f32::INFINITY {
+        return None;
+    }
+    let mut stack = [(0u32, 0f32); MAX_DEPTH];
+    let mut sp = 0;
+    let mut node = 0usize;
+    loop {
+        let n = &nodes[node];
+        if n.is_leaf() {
+            intersect_leaf(tris, n, ray, &mut best, stats);
+        } else {
+            let (a, b) = (node + 1, n.index as usize);
+            let (ta, tb) = (rb.slab(&nodes[a], ray.t_max), rb.slab(&nodes[b], ray.t_max));
+            stats.node_tests += 2;
+            let (near, t_near, far, t_far) = if ta <= tb { (a, ta, b, tb) } else { (b, tb, a, ta) };
+            if t_near != f32::INFINITY {
+                if t_far != f32::INFINITY {
+                    stack[sp] = (far as u32, t_far);
+                    sp += 1;
+                }
+                node = near;
+                continue;
+            }
+        }
+        // Pop the next subtree that can still hold a nearer hit.
+        loop {
+            if sp == 0 {
+                return best;
+            }
+            sp -= 1;
+            let (next, t_entry) = stack[sp];
+            if t_entry <= ray.t_max {
+                node = next as usize;
+                break;
+            }
+        }
+    }
+}
+
+/// Whether any triangle blocks the ray within [t_min, t_max]; stops at the first one found.
+pub fn occluded(nodes: &[BvhNode], tris: &TriangleSoa, ray: &Ray, stats: &mut TraceStats) -> bool {
+    let rb = RayBox::new(ray);
+    stats.node_tests += 1;
+    if nodes.is_empty() || rb.slab(&nodes[0], ray.t_max) == f32::INFINITY {
+        return false;
+    }
+    let mut stack = [0u32; MAX_DEPTH];
+    let mut sp = 0;
+    let mut node = 0usize;
+    loop {
+        let n = &nodes[node];
+        if n.is_leaf() {
+            if occluded_leaf(tris, n, ray, stats) {
+                return true;
+            }
+        } else {
+            let (a, b) = (node + 1, n.index as usize);
+            let (ta, tb) = (rb.slab(&nodes[a], ray.t_max), rb.slab(&nodes[b], ray.t_max));
+            stats.node_tests += 2;
+            match (ta != f32::INFINITY, tb != f32::INFINITY) {
+                (true, true) => {
+                    stack[sp] = b as u32;
+                    sp += 1;
+                    node = a;
+                    continue;
+                }
+                (true, false) => {
+                    node = a;
+                    continue;
+                }
+                (false, true) => {
+                    node = b;
+                    continue;
+                }
+                (false, false) => {}
+            }
+        }
+        if sp == 0 {
+            return false;
+        }
+        sp -= 1;
+        node = stack[sp] as usize;
+    }
+}
