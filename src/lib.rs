@@ -12,11 +12,13 @@
 
 pub mod accel;
 pub mod bench;
+pub mod convergence;
 pub mod error;
 pub mod film;
 pub mod geometry;
 pub mod integrator;
 pub mod math;
+pub mod metrics;
 pub mod procedural;
 pub mod render;
 pub mod sampler;

@@ -1,5 +1,5 @@
 //! The `pathtracer` command line: rendering with the course's flags (`-t -s -l -m -H -f -r -a`),
-//! and the `bench` subcommand. Parses arguments, then calls the library. Every user error is
+//! and the `bench`, `compare` and `converge` subcommands. Parses arguments, then calls the library. Every user error is
 //! one line on stderr and exit code 2; nothing is written unless the render succeeded.
 
 use std::process::ExitCode;
@@ -10,6 +10,8 @@ fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = match args.first().map(String::as_str) {
         Some("bench") => cli::bench::run(&args[1..]),
+        Some("compare") => cli::compare::run(&args[1..]),
+        Some("converge") => cli::converge::run(&args[1..]),
         _ => cli::render::run(&args),
     };
     match result {

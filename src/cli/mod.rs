@@ -2,6 +2,8 @@
 //! is one line on stderr and exit code 2.
 
 pub mod bench;
+pub mod compare;
+pub mod converge;
 pub mod render;
 
 use pathtracer::{bail, Error, Result};

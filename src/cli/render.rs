@@ -13,6 +13,8 @@ const USAGE: &str = "\
 Usage: pathtracer [OPTIONS] SCENE.dae
        pathtracer --info SCENE.dae
        pathtracer bench SCENE.dae [BENCH OPTIONS]   (see pathtracer bench --help)
+       pathtracer compare IMAGE REFERENCE [--mask MASK]   (error metrics)
+       pathtracer converge SCENE.dae --spp LIST ...      (error and time against spp)
 
 Renders a CS184 COLLADA scene (course camera and lighting conventions).
 
@@ -43,13 +45,13 @@ const MAX_SIDE: u32 = 16_384;
 const MAX_PIXELS: u64 = 1 << 27;
 
 #[derive(Debug)]
-struct Cli {
-    scene: PathBuf,
-    output: Option<PathBuf>,
-    info: bool,
+pub(super) struct Cli {
+    pub scene: PathBuf,
+    pub output: Option<PathBuf>,
+    pub info: bool,
     hemisphere: bool,
-    accel: AccelKind,
-    config: RenderConfig,
+    pub accel: AccelKind,
+    pub config: RenderConfig,
 }
 
 pub fn run(args: &[String]) -> Result<()> {
@@ -134,7 +136,7 @@ fn print_render_stats(out: &pathtracer::render::RenderOutput) {
     );
 }
 
-fn available_threads() -> usize {
+pub(super) fn available_threads() -> usize {
     std::thread::available_parallelism().map_or(1, |n| n.get())
 }
 
@@ -157,7 +159,7 @@ fn check_output_path(path: &Path) -> Result<()> {
     Ok(())
 }
 
-fn parse_args(args: &[String]) -> Result<Cli> {
+pub(super) fn parse_args(args: &[String]) -> Result<Cli> {
     let mut cli = Cli {
         scene: PathBuf::new(),
         output: None,
@@ -235,7 +237,7 @@ fn parse_integrator(name: &str) -> Result<Integrator> {
 }
 
 /// Warnings about lights an estimator cannot reach: never silently render black.
-fn lighting_warnings(scene: &scene::Scene, integrator: Integrator) -> Vec<String> {
+pub(super) fn lighting_warnings(scene: &scene::Scene, integrator: Integrator) -> Vec<String> {
     let count = |kind: &str| scene.lights.iter().filter(|l| l.kind() == kind).count();
     let mut out = Vec::new();
     match integrator {

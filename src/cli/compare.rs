@@ -1,0 +1,125 @@
+//! `pathtracer compare IMAGE REFERENCE [--mask MASK]`: error metrics of an image against a
+//! reference (see `pathtracer::metrics` for the definitions).
+
+use std::path::PathBuf;
+
+use pathtracer::metrics::{self, Comparison, RegionError};
+use pathtracer::{bail, Error, Result};
+
+const USAGE: &str = "\
+Usage: pathtracer compare IMAGE REFERENCE [--mask MASK.png]
+
+Prints RMSE, relative RMSE (RMSE / mean of the reference) and mean bias (image - reference) per
+channel and over all channels, for the whole image and for the mask's nonzero pixels.
+EXR files are read as linear radiance; PNG as display values in [0, 1] (compare PNG with PNG).
+Both images (and the mask) must have the same size.";
+
+pub fn run(args: &[String]) -> Result<()> {
+    if args.iter().any(|a| a == "-h" || a == "--help") {
+        println!("{USAGE}");
+        return Ok(());
+    }
+    let (image_path, reference_path, mask_path) = parse(args)?;
+    let image = metrics::read_image(&image_path)?;
+    let reference = metrics::read_image(&reference_path)?;
+    let mask = match &mask_path {
+        Some(p) => {
+            let (w, h, m) = metrics::read_mask(p)?;
+            if (w, h) != (image.width, image.height) {
+                bail!(
+                    "compare: mask {} is {w}x{h} but the images are {}x{}",
+                    p.display(),
+                    image.width,
+                    image.height
+                );
+            }
+            if !m.iter().any(|&b| b) {
+                bail!("compare: mask {} has no nonzero pixel", p.display());
+            }
+            Some(m)
+        }
+        None => None,
+    };
+    let c = metrics::compare(&image, &reference, mask.as_deref()).map_err(|e| {
+        e.context(format!("compare {} {}", image_path.display(), reference_path.display()))
+    })?;
+    print!("{}", format_comparison(&c));
+    Ok(())
+}
+
+fn parse(args: &[String]) -> Result<(PathBuf, PathBuf, Option<PathBuf>)> {
+    let mut files = Vec::new();
+    let mut mask = None;
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--mask" => {
+                let v = it.next().ok_or_else(|| Error::new("compare: --mask needs a value"))?;
+                if mask.replace(PathBuf::from(v)).is_some() {
+                    bail!("compare: --mask given twice");
+                }
+            }
+            s if s.starts_with('-') && s.len() > 1 => {
+                bail!("compare: unknown option '{s}' (see pathtracer compare --help)")
+            }
+            s => files.push(PathBuf::from(s)),
+        }
+    }
+    match <[PathBuf; 2]>::try_from(files) {
+        Ok([a, b]) => Ok((a, b, mask)),
+        Err(f) => bail!("compare: expected two images (IMAGE REFERENCE), got {}", f.len()),
+    }
+}
+
+/// The table `compare` prints: one row per region and channel.
+pub fn format_comparison(c: &Comparison) -> String {
+    let mut s = format!(
+        "{:<7} {:>9} {:<4} {:>12} {:>10} {:>13} {:>12}\n",
+        "region", "pixels", "chan", "rmse", "rel_rmse", "bias", "ref_mean"
+    );
+    let mut region = |name: &str, e: &RegionError| {
+        let ref_all = e.reference_mean.iter().sum::<f64>() / 3.0;
+        let rows = [
+            ("R", e.rmse[0], e.rel_rmse[0], e.bias[0], e.reference_mean[0]),
+            ("G", e.rmse[1], e.rel_rmse[1], e.bias[1], e.reference_mean[1]),
+            ("B", e.rmse[2], e.rel_rmse[2], e.bias[2], e.reference_mean[2]),
+            ("all", e.rmse_all, e.rel_rmse_all, e.bias_all, ref_all),
+        ];
+        for (ch, rmse, rel, bias, mean) in rows {
+            s += &format!(
+                "{name:<7} {:>9} {ch:<4} {rmse:>12.6e} {rel:>10.6} {bias:>+13.6e} {mean:>12.6e}\n",
+                e.pixels
+            );
+        }
+    };
+    region("image", &c.image);
+    if let Some(m) = &c.masked {
+        region("mask", m);
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn args(s: &str) -> Vec<String> {
+        s.split_whitespace().map(String::from).collect()
+    }
+
+    #[test]
+    fn arguments() {
+        let (a, b, m) = parse(&args("a.exr b.exr --mask m.png")).unwrap();
+        assert_eq!((a, b, m), ("a.exr".into(), "b.exr".into(), Some("m.png".into())));
+        for (bad, want) in [
+            ("a.exr", "expected two images"),
+            ("a.exr b.exr c.exr", "expected two images"),
+            ("a.exr b.exr --mask", "needs a value"),
+            ("a.exr b.exr --mask m --mask n", "twice"),
+            ("a.exr b.exr --bogus", "unknown option"),
+        ] {
+            let e = parse(&args(bad)).unwrap_err().to_string();
+            assert!(e.contains(want), "{bad}: {e}");
+        }
+    }
+}
