@@ -32,6 +32,8 @@ pub fn parse(text: &str) -> Result<Scene> {
         materials: HashMap::new(),
         camera: None,
         skipped_polygons: 0,
+        open_nodes: Vec::new(),
+        node_visits: 0,
     };
     let up = up_axis_matrix(root)?;
     let visual_scene = loader.visual_scene(root)?;
@@ -49,7 +51,19 @@ struct Loader<'a, 'input> {
     materials: HashMap<String, u32>,
     camera: Option<CameraDesc>,
     skipped_polygons: usize,
+    /// The nodes being visited, outermost first: an `instance_node` naming one of them is a
+    /// cycle, and its length bounds the recursion (deep recursion overflows the stack, which
+    /// aborts the process instead of returning an error).
+    open_nodes: Vec<roxmltree::NodeId>,
+    /// Nodes visited so far, instances included: bounds the work of instancing chains, which
+    /// can multiply geometry exponentially without any cycle.
+    node_visits: usize,
 }
+
+/// Deepest node nesting (including instancing) we follow; the course files nest 3 deep.
+const MAX_NODE_DEPTH: usize = 256;
+/// Most node visits (instances included) in one file.
+const MAX_NODE_VISITS: usize = 1 << 20;
 
 impl<'a, 'input> Loader<'a, 'input> {
     /// The element a `#id` reference (`url`, `source`, `target`) names.
@@ -76,6 +90,30 @@ impl<'a, 'input> Loader<'a, 'input> {
 
     fn visit_node(&mut self, node: Node<'a, 'input>, parent: Mat4) -> Result<()> {
         let name = node.attribute("id").or(node.attribute("name")).unwrap_or("?");
+        if self.open_nodes.contains(&node.id()) {
+            bail!("node '{name}' instances itself (an instance_node cycle)");
+        }
+        if self.open_nodes.len() >= MAX_NODE_DEPTH {
+            bail!("nodes nested or instanced too deep (more than {MAX_NODE_DEPTH} levels)");
+        }
+        self.node_visits += 1;
+        if self.node_visits > MAX_NODE_VISITS {
+            bail!(
+                "too many node instances (more than {MAX_NODE_VISITS}): nodes instanced too deep"
+            );
+        }
+        self.open_nodes.push(node.id());
+        let result = self.visit_node_children(node, name, parent);
+        self.open_nodes.pop();
+        result
+    }
+
+    fn visit_node_children(
+        &mut self,
+        node: Node<'a, 'input>,
+        name: &str,
+        parent: Mat4,
+    ) -> Result<()> {
         let local = node_transform(node, &mut self.scene.warnings)
             .map_err(|e| e.context(format!("node '{name}'")))?;
         let world = parent * local;
@@ -184,6 +222,11 @@ impl<'a, 'input> Loader<'a, 'input> {
         let mut vertex_offset = None;
         for input in &inputs {
             let offset: usize = parse_attr(*input, "offset")?.unwrap_or(0);
+            // Offsets index a tuple of one entry per input; anything larger is malformed (and
+            // offset + 1 or n * stride would overflow).
+            if offset >= inputs.len().max(1) * 64 {
+                bail!("<{kind}> input offset {offset} is larger than its inputs allow");
+            }
             stride = stride.max(offset + 1);
             if input.attribute("semantic") == Some("VERTEX") {
                 let source = self.resolve(required_attr(*input, "source")?, "VERTEX input")?;
@@ -213,7 +256,9 @@ impl<'a, 'input> Loader<'a, 'input> {
             let mut polys = Vec::new();
             let mut at = 0;
             for n in counts {
-                let end = at + n * stride;
+                let Some(end) = n.checked_mul(stride).and_then(|k| k.checked_add(at)) else {
+                    bail!("<{kind}> polygon of {n} corners is larger than any <p>");
+                };
                 if end > p.len() {
                     bail!("<{kind}> needs {end} indices but <p> has only {}", p.len());
                 }
