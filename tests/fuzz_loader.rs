@@ -157,7 +157,7 @@ fn element_span(text: &str, rng: &mut Pcg32) -> Option<(usize, usize)> {
         return None;
     }
     let s = opens[(rng.next_u32() as usize) % opens.len()];
-    let name_end = s + 1 + text[s + 1..].find(|c: char| c == ' ' || c == '>' || c == '/')?;
+    let name_end = s + 1 + text[s + 1..].find([' ', '\n', '\t', '>', '/'])?;
     let name = &text[s + 1..name_end];
     let tag_end = s + text[s..].find('>')? + 1;
     if text[..tag_end].ends_with("/>") {
