@@ -10,6 +10,7 @@ fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = match args.first().map(String::as_str) {
         Some("bench") => cli::bench::run(&args[1..]),
+        Some("gen") => cli::gen::run(&args[1..]),
         _ => cli::render::run(&args),
     };
     match result {

@@ -2,6 +2,7 @@
 //! is one line on stderr and exit code 2.
 
 pub mod bench;
+pub mod gen;
 pub mod render;
 
 use pathtracer::{bail, Error, Result};
