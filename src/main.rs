@@ -12,6 +12,7 @@ fn main() -> ExitCode {
         Some("bench") => cli::bench::run(&args[1..]),
         Some("compare") => cli::compare::run(&args[1..]),
         Some("converge") => cli::converge::run(&args[1..]),
+        Some("gen") => cli::gen::run(&args[1..]),
         _ => cli::render::run(&args),
     };
     match result {

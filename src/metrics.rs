@@ -141,34 +141,12 @@ fn decode(path: &Path) -> Result<image::DynamicImage> {
     reader.decode().map_err(|e| Error::new(format!("{}: cannot decode: {e}", path.display())))
 }
 
-/// Writes a linear RGB image as 32-bit float OpenEXR: to a temporary file beside `path`, then
-/// renamed over it, so a failed write never leaves half a file under the requested name.
+/// Writes a linear RGB image as 32-bit float OpenEXR (atomically, through the film module).
 pub fn write_exr(path: &Path, image: &Image) -> Result<()> {
-    let n = (image.width as usize) * (image.height as usize);
-    if image.pixels.len() != n {
-        bail!(
-            "{}: {} pixels for a {}x{} image",
-            path.display(),
-            image.pixels.len(),
-            image.width,
-            image.height
-        );
+    if !path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
+        bail!("{}: a reference must be written as .exr", path.display());
     }
-    let data: Vec<f32> = image.pixels.iter().flat_map(|p| [p.x, p.y, p.z]).collect();
-    let buffer = image::Rgb32FImage::from_raw(image.width, image.height, data)
-        .ok_or_else(|| Error::new(format!("{}: bad image size", path.display())))?;
-    let tmp = path.with_extension("exr.partial");
-    let result = buffer
-        .save_with_format(&tmp, image::ImageFormat::OpenExr)
-        .map_err(|e| Error::new(format!("{}: cannot write: {e}", path.display())))
-        .and_then(|()| {
-            std::fs::rename(&tmp, path)
-                .map_err(|e| Error::new(format!("{}: cannot write: {e}", path.display())))
-        });
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
+    crate::film::write_image(path, image.width, image.height, &image.pixels)
 }
 
 #[cfg(test)]
@@ -276,7 +254,7 @@ mod tests {
         };
         write_exr(&path, &image).unwrap();
         assert_eq!(read_image(&path).unwrap(), image);
-        assert!(!dir.join("a.exr.partial").exists());
+        assert!(write_exr(&dir.join("a.png"), &image).is_err());
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

@@ -100,7 +100,8 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
     let done = AtomicUsize::new(0);
     let start = Instant::now();
     let (results, time): (Vec<TileResult>, Duration) = std::thread::scope(|s| {
-        if config.progress {
+        // A progress line only makes sense on a terminal; logs and pipes get the final stats.
+        if config.progress && std::io::IsTerminal::is_terminal(&std::io::stderr()) {
             s.spawn(|| report_progress(&done, tiles.len(), start));
         }
         let results = pool.install(|| {

@@ -118,3 +118,48 @@ fn info_reports_the_course_scene() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(stdout.contains("12"), "{stdout}");
 }
+
+#[test]
+fn gen_writes_loadable_scenes_and_rejects_bad_requests() {
+    let dir = scratch_dir("gen");
+    let out = dir.join("tori.dae");
+    let ok = pathtracer(&["gen", "tori", "10000", "--seed", "2", "-o", out.to_str().unwrap()]);
+    assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
+    let info = pathtracer(&["--info", out.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&info.stdout);
+    let want = format!("triangles: {}", pathtracer::procedural::tori_triangle_count(10_000));
+    assert!(text.contains(&want), "{text}");
+
+    let o = dir.join("x.dae");
+    let o = o.to_str().unwrap();
+    for (args, want) in [
+        (vec!["gen", "tori", "5", "-o", o], "out of range"),
+        (vec!["gen", "tori", "-o", o], "how many triangles"),
+        (vec!["gen", "teapot", "-o", o], "unknown scene"),
+        (vec!["gen", "cornell"], "no output file"),
+        (vec!["gen", "cornell", "-o", "/no/such/dir/c.dae"], "cannot write"),
+    ] {
+        assert_one_line_error(&pathtracer(&args), want);
+    }
+    assert!(!dir.join("x.dae").exists());
+}
+
+#[test]
+fn exr_output_and_adaptive_rate_image() {
+    let dir = scratch_dir("exr");
+    let exr = dir.join("box.exr");
+    // The full course frame, so that the emitter is in view.
+    let args = ["-t", "2", "-s", "4", "-a", "2", "0.5", "--quiet"];
+    let mut all: Vec<&str> = args.to_vec();
+    let cornell = cornell();
+    all.extend(["-f", exr.to_str().unwrap(), cornell.to_str().unwrap()]);
+    let out = pathtracer(&all);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let img = image::open(&exr).unwrap().into_rgb32f();
+    assert_eq!(img.dimensions(), (800, 600));
+    // Linear radiance: the emitter seen directly is far above the PNG range.
+    let max = img.pixels().flat_map(|p| p.0).fold(0.0f32, f32::max);
+    assert!(max > 2.0, "max radiance {max}");
+    let rate = image::open(dir.join("box_rate.png")).unwrap();
+    assert_eq!((rate.width(), rate.height()), (800, 600));
+}

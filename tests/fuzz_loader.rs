@@ -76,6 +76,7 @@ fn mutate(text: &str, rng: &mut Pcg32) -> String {
     match below(rng, 8) {
         // Byte flips: arbitrary bytes, so the result may not be UTF-8 (read as `load` would
         // fail on it; the lossy text still exercises the XML parser).
+        0 if text.is_empty() => String::new(),
         0 => {
             let mut bytes = text.as_bytes().to_vec();
             for _ in 0..1 + below(rng, 4) {
@@ -222,9 +223,15 @@ fn campaign(count: usize, threads: usize, seed: u64) -> Option<Tally> {
         })
         .collect();
     let tally = Tally::default();
-    // Panics are counted, not printed: a million backtraces would drown the report.
-    let hook = std::panic::take_hook();
-    std::panic::set_hook(Box::new(|_| {}));
+    // Panics in the loader are counted, not printed: a million backtraces would drown the
+    // report. Any other panic (in the harness itself) still prints.
+    let hook = std::sync::Arc::new(std::panic::take_hook());
+    let print = hook.clone();
+    std::panic::set_hook(Box::new(move |info| {
+        if !IN_LOADER.with(|f| f.get()) {
+            print(info)
+        }
+    }));
     std::thread::scope(|s| {
         for t in 0..threads {
             let (seeds, tally) = (&seeds, &tally);
@@ -241,8 +248,15 @@ fn campaign(count: usize, threads: usize, seed: u64) -> Option<Tally> {
             });
         }
     });
-    std::panic::set_hook(hook);
+    let _ = std::panic::take_hook();
+    if let Ok(hook) = std::sync::Arc::try_unwrap(hook) {
+        std::panic::set_hook(hook);
+    }
     Some(tally)
+}
+
+thread_local! {
+    static IN_LOADER: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
 }
 
 fn check(text: &str, tally: &Tally) {
@@ -253,7 +267,10 @@ fn check(text: &str, tally: &Tally) {
             f.push((why, text.to_string()));
         }
     };
-    match catch_unwind(AssertUnwindSafe(|| collada::parse(text))) {
+    IN_LOADER.with(|f| f.set(true));
+    let result = catch_unwind(AssertUnwindSafe(|| collada::parse(text)));
+    IN_LOADER.with(|f| f.set(false));
+    match result {
         Ok(Ok(scene)) => {
             tally.scenes.fetch_add(1, Ordering::Relaxed);
             if let Err(e) = scene.validate() {

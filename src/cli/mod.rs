@@ -4,6 +4,7 @@
 pub mod bench;
 pub mod compare;
 pub mod converge;
+pub mod gen;
 pub mod render;
 
 use pathtracer::{bail, Error, Result};

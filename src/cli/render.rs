@@ -15,6 +15,7 @@ Usage: pathtracer [OPTIONS] SCENE.dae
        pathtracer bench SCENE.dae [BENCH OPTIONS]   (see pathtracer bench --help)
        pathtracer compare IMAGE REFERENCE [--mask MASK]   (error metrics)
        pathtracer converge SCENE.dae --spp LIST ...      (error and time against spp)
+       pathtracer gen cornell|tori N -o FILE.dae     (see pathtracer gen --help)
 
 Renders a CS184 COLLADA scene (course camera and lighting conventions).
 
@@ -109,6 +110,11 @@ fn render_to_file(cli: &Cli) -> Result<()> {
     print!("[PathTracer] Saving to file: {}... ", output.display());
     pathtracer::film::write_image(&output, out.width, out.height, &out.pixels)?;
     println!("Done!");
+    if config.adaptive.is_some() {
+        let rate = pathtracer::film::rate_image_path(&output);
+        pathtracer::film::write_rate_image(&rate, out.width, out.height, &out.samples, config.spp)?;
+        println!("[PathTracer] Sampling rate image: {}", rate.display());
+    }
     println!("[PathTracer] Job completed.");
     Ok(())
 }

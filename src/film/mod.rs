@@ -1,15 +1,13 @@
-//! TEMPORARY stub until the film module lands from the `assets` branch.
-use crate::math::Vec3;
-use std::path::Path;
+//! The film: a finished render (linear radiance per pixel) becomes an image file.
+//!
+//! - `.png`: the course's tone map, clamp((sqrt(2) L)^(1/2.2), 0, 1) per channel
+//!   (SCENE_FORMAT.md "Output"), 8 bits.
+//! - `.exr`: linear radiance as 32-bit floats, for comparisons against references.
+//! - The adaptive-sampling rate image: samples taken / samples allowed as a colour ramp.
+//!
+//! Every file is written to a temporary name beside its destination and renamed into place
+//! only when complete, so a failed or interrupted write never leaves a half-written image.
 
-pub fn write_image(path: &Path, width: u32, height: u32, pixels: &[Vec3]) -> crate::Result<()> {
-    let mut img = image::RgbImage::new(width, height);
-    for (p, l) in img.pixels_mut().zip(pixels) {
-        let t = |x: f32| {
-            ((std::f32::consts::SQRT_2 * x).max(0.0).powf(1.0 / 2.2).clamp(0.0, 1.0) * 255.0 + 0.5)
-                as u8
-        };
-        *p = image::Rgb([t(l.x), t(l.y), t(l.z)]);
-    }
-    img.save(path).map_err(|e| crate::Error::new(format!("{}: {e}", path.display())))
-}
+mod output;
+
+pub use output::{rate_image_path, tone_map, write_image, write_rate_image};
