@@ -78,3 +78,15 @@ fn diffuse_plane_under_ambient_sky_gives_albedo_times_radiance() {
         assert!((*p - want).abs().max_element() < 1e-5, "{p} vs {want}");
     }
 }
+
+/// A whiter furnace (albedo 0.9) at effectively unlimited depth: the series sums ten bounces'
+/// worth of light, so Russian roulette must terminate paths without bias. L = direct / (1 - a).
+#[test]
+fn white_furnace_converges_to_direct_over_one_minus_albedo() {
+    let (a, i) = (0.9f32, 2.0f32);
+    let want = (a / PI * i / (1.0 - a)) as f64;
+    let (mean, err) = mean_radiance(&furnace(a, i), 1000, 256);
+    eprintln!("a = 0.9, -m 1000: {mean:.5} +- {err:.5} vs {want:.5}");
+    assert!(err < 0.01 * want, "too noisy to be a test ({err})");
+    assert!((mean - want).abs() < 4.0 * err + 1e-4 * want, "{mean} +- {err} vs {want}");
+}
