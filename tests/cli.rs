@@ -163,3 +163,79 @@ fn exr_output_and_adaptive_rate_image() {
     let rate = image::open(dir.join("box_rate.png")).unwrap();
     assert_eq!((rate.width(), rate.height()), (800, 600));
 }
+
+#[test]
+fn compare_and_converge_measure_errors_and_fail_cleanly() {
+    let dir = scratch_dir("compare");
+    let scene = cornell();
+    let scene = scene.to_str().unwrap();
+    let path = |n: &str| dir.join(n).to_str().unwrap().to_string();
+    let (a, b, small) = (path("a.exr"), path("b.exr"), path("small.exr"));
+    for (spp, seed, res, out) in
+        [("1", "1", "16 12", &a), ("4", "2", "16 12", &b), ("1", "1", "8 6", &small)]
+    {
+        let mut args = vec!["-s", spp, "--seed", seed, "-r"];
+        args.extend(res.split(' '));
+        args.extend(["-f", out, scene]);
+        assert!(pathtracer(&args).status.success(), "render {out}");
+    }
+    let stdout = |o: &Output| String::from_utf8_lossy(&o.stdout).into_owned();
+
+    let same = pathtracer(&["compare", &a, &a]);
+    assert!(same.status.success());
+    let row = stdout(&same).lines().find(|l| l.contains(" all ")).unwrap().to_string();
+    assert!(row.contains("0.000000e0"), "identical images: {row}");
+    let diff = pathtracer(&["compare", &a, &b]);
+    assert!(diff.status.success());
+    assert!(!stdout(&diff).lines().any(|l| l.starts_with("image") && l.contains(" 0.000000e0 ")));
+
+    // A mask selecting the left half.
+    let mut mask = image::GrayImage::new(16, 12);
+    for (x, _, p) in mask.enumerate_pixels_mut() {
+        p.0[0] = if x < 8 { 255 } else { 0 };
+    }
+    let mask_path = path("mask.png");
+    mask.save(&mask_path).unwrap();
+    let masked = pathtracer(&["compare", &a, &b, "--mask", &mask_path]);
+    assert!(masked.status.success());
+    assert!(stdout(&masked).lines().any(|l| l.starts_with("mask") && l.contains(" 96 ")));
+    image::GrayImage::new(16, 12).save(path("black.png")).unwrap();
+    std::fs::write(path("junk.exr"), "not an image").unwrap();
+
+    for (args, want) in [
+        (vec!["compare", &a, &small], "sizes differ"),
+        (vec!["compare", &a], "expected two images"),
+        (vec!["compare", &a, &path("missing.exr")], "missing.exr"),
+        (vec!["compare", &a, &path("junk.exr")], "junk.exr"),
+        (vec!["compare", &a, &b, "--mask", &path("black.png")], "no nonzero pixel"),
+        (vec!["compare", &a, &small, "--mask", &mask_path], "mask"),
+        (vec!["converge", scene, "--spp", "1", "--reference", &small, "-r", "16", "12"], "8x6"),
+        (vec!["converge", scene, "--reference", &a], "--spp LIST is required"),
+        (vec!["converge", scene, "--spp", "1", "--ref-spp", "2", "-f", "x.png"], "-f is not used"),
+        (vec!["converge", "--spp", "1", "--ref-spp", "2"], "no scene file"),
+    ] {
+        assert_one_line_error(&pathtracer(&args), want);
+    }
+
+    let (csv, reference) = (path("c.csv"), path("ref.exr"));
+    let conv = pathtracer(&[
+        "converge",
+        scene,
+        "--spp",
+        "1,2,4",
+        "--ref-spp",
+        "16",
+        "-r",
+        "16",
+        "12",
+        "--csv",
+        &csv,
+        "--write-reference",
+        &reference,
+    ]);
+    assert!(conv.status.success(), "{}", String::from_utf8_lossy(&conv.stderr));
+    assert!(stdout(&conv).contains("fitted slope"));
+    assert_eq!(std::fs::read_to_string(&csv).unwrap().lines().count(), 4);
+    assert!(pathtracer(&["compare", &a, &reference]).status.success());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
