@@ -122,12 +122,13 @@ pub fn read_image(path: &Path) -> Result<Image> {
     Ok(Image { width, height, pixels })
 }
 
-/// Reads a mask: a pixel is inside when any of its channels (alpha included) is nonzero.
+/// Reads a mask: a pixel is inside when any of its colour channels is nonzero and it is not
+/// fully transparent (an opaque image has alpha 1 everywhere, so alpha alone cannot decide).
 pub fn read_mask(path: &Path) -> Result<(u32, u32, Vec<bool>)> {
     let img = decode(path)?;
     let (w, h) = (img.width(), img.height());
     let rgba = img.into_rgba32f();
-    Ok((w, h, rgba.pixels().map(|p| p.0.iter().any(|&v| v != 0.0)).collect()))
+    Ok((w, h, rgba.pixels().map(|p| p.0[3] != 0.0 && p.0[..3].iter().any(|&v| v != 0.0)).collect()))
 }
 
 fn decode(path: &Path) -> Result<image::DynamicImage> {
@@ -255,6 +256,20 @@ mod tests {
         write_exr(&path, &image).unwrap();
         assert_eq!(read_image(&path).unwrap(), image);
         assert!(write_exr(&dir.join("a.png"), &image).is_err());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn masks_are_nonzero_colour_where_not_transparent() {
+        let dir = std::env::temp_dir().join(format!("pt-metrics-mask-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("m.png");
+        let mut m = image::RgbaImage::new(3, 1);
+        m.put_pixel(0, 0, image::Rgba([255, 255, 255, 255]));
+        m.put_pixel(1, 0, image::Rgba([0, 0, 0, 255]));
+        m.put_pixel(2, 0, image::Rgba([0, 9, 0, 0]));
+        m.save(&path).unwrap();
+        assert_eq!(read_mask(&path).unwrap(), (3, 1, vec![true, false, false]));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

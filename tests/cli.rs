@@ -200,6 +200,7 @@ fn compare_and_converge_measure_errors_and_fail_cleanly() {
     assert!(masked.status.success());
     assert!(stdout(&masked).lines().any(|l| l.starts_with("mask") && l.contains(" 96 ")));
     image::GrayImage::new(16, 12).save(path("black.png")).unwrap();
+    image::GrayImage::from_pixel(8, 6, image::Luma([255])).save(path("small_mask.png")).unwrap();
     std::fs::write(path("junk.exr"), "not an image").unwrap();
 
     for (args, want) in [
@@ -208,7 +209,7 @@ fn compare_and_converge_measure_errors_and_fail_cleanly() {
         (vec!["compare", &a, &path("missing.exr")], "missing.exr"),
         (vec!["compare", &a, &path("junk.exr")], "junk.exr"),
         (vec!["compare", &a, &b, "--mask", &path("black.png")], "no nonzero pixel"),
-        (vec!["compare", &a, &small, "--mask", &mask_path], "mask"),
+        (vec!["compare", &a, &b, "--mask", &path("small_mask.png")], "mask"),
         (vec!["converge", scene, "--spp", "1", "--reference", &small, "-r", "16", "12"], "8x6"),
         (vec!["converge", scene, "--reference", &a], "--spp LIST is required"),
         (vec!["converge", scene, "--spp", "1", "--ref-spp", "2", "-f", "x.png"], "-f is not used"),
