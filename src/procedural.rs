@@ -33,9 +33,14 @@ pub type Matrix = [[f32; 4]; 4];
 pub const IDENTITY: Matrix =
     [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
 
-/// Half a turn about y: the camera node's matrix.
-const CAMERA_TURN: Matrix =
+/// Half a turn about y: c = M(0, 0, -1) = +z, an eye in front of the scene looking down -z.
+const CAMERA_FRONT: Matrix =
     [[-1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, -1.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
+
+/// c = (0, 0.6, 0.8): an eye in front of the scene and above it, looking down about 37 degrees.
+/// (A rotation about x whose third column is -c.)
+const CAMERA_ABOVE: Matrix =
+    [[1.0, 0.0, 0.0, 0.0], [0.0, 0.8, -0.6, 0.0], [0.0, 0.6, -0.8, 0.0], [0.0, 0.0, 0.0, 1.0]];
 
 /// What a surface is made of, as the CGL profile (or a plain phong diffuse colour) says it.
 #[derive(Debug, Clone, Copy)]
@@ -181,10 +186,10 @@ impl DaeWriter {
         );
     }
 
-    /// The whole document, with a camera on the +z side looking down -z. The course places the
-    /// eye at target + r c with c = M(0, 0, -1) (SCENE_FORMAT.md "Camera"), so the camera node
-    /// is turned half a turn about y to make c = +z.
-    pub fn finish(self, title: &str) -> String {
+    /// The whole document. The course ignores the camera's position and places the eye at
+    /// target + r c, c = unit(M(0, 0, -1)) (SCENE_FORMAT.md "Camera"): `camera` is the camera
+    /// node's rotation, chosen so that c is the unit direction from the scene to the eye.
+    pub fn finish(self, title: &str, camera: &Matrix) -> String {
         format!(
             "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n\
              <!-- {title}: written by `pathtracer gen` (src/procedural.rs); regenerate, do not edit. -->\n\
@@ -205,7 +210,7 @@ impl DaeWriter {
             self.effects,
             self.materials,
             self.geometries,
-            matrix_element(&CAMERA_TURN),
+            matrix_element(camera),
             self.nodes
         )
     }
@@ -275,7 +280,7 @@ pub fn cornell_box() -> String {
     w.ceiling_area_light("area", Vec3::new(0.0, y, 0.0), 2.0 * half, 2.0 * half, radiance);
     w.sphere("mirror-ball", Vec3::new(-0.45, 0.4, -0.35), 0.4, "mirror");
     w.sphere("glass-ball", Vec3::new(0.45, 0.4, 0.3), 0.4, "glass");
-    w.finish("Cornell box with a coincident emissive quad and area light")
+    w.finish("Cornell box with a coincident emissive quad and area light", &CAMERA_FRONT)
 }
 
 /// Triangles per torus in [`tori`] and the segment counts that make them.
@@ -380,7 +385,8 @@ pub fn tori(target: usize, seed: u64) -> String {
         let paint = format!("paint{}", rng.next_u32() % 4);
         w.mesh(&format!("torus{k}"), &mesh_p, &mesh_t, &paint, &m);
     }
-    w.finish(&format!("{count} tori, {} triangles, seed {seed}", tori_triangle_count(target)))
+    let title = format!("{count} tori, {} triangles, seed {seed}", tori_triangle_count(target));
+    w.finish(&title, &CAMERA_ABOVE)
 }
 
 #[cfg(test)]

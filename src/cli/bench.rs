@@ -41,7 +41,13 @@ pub fn run(args: &[String]) -> Result<()> {
     let a = parse(args)?;
     let loaded = scene::collada::load(&a.scene)?;
     let scene = bench::triangles_only(&loaded);
-    let accel = Accel::build(&scene, AccelKind::Bvh);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(a.threads)
+        .build()
+        .map_err(|e| Error::new(format!("cannot start {} threads: {e}", a.threads)))?;
+    // The build runs on the same `--threads` workers as the trace, so build_ms at 1 thread is
+    // a single-threaded build.
+    let accel = pool.install(|| Accel::build(&scene, AccelKind::Bvh));
     let build_ms = accel.build_time().as_secs_f64() * 1e3;
 
     let sets: Vec<(RaySet, Vec<pathtracer::math::Ray>)> = match (&a.rays_in, a.ray_set) {
@@ -65,10 +71,6 @@ pub fn run(args: &[String]) -> Result<()> {
         }
     };
 
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(a.threads)
-        .build()
-        .map_err(|e| Error::new(format!("cannot start {} threads: {e}", a.threads)))?;
     let name = a
         .scene
         .file_name()

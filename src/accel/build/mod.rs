@@ -1,18 +1,24 @@
 //! BVH construction: a binned SAH build straight into the flat depth-first node array.
 //!
-//! Primitives are known only by their bounding boxes and centroids; the builder returns the
-//! node array and the primitive order that the leaves index.
+//! Primitives are known only by their bounding boxes; the builder returns the node array and
+//! the primitive order that the leaves index. It works on an array of 32-byte primitive
+//! references (box + index) that it partitions in place, so every pass over a node's
+//! primitives streams through contiguous memory instead of chasing an index array. Subtrees of
+//! more than `PARALLEL_MIN` primitives are built on both sides of a `rayon::join`; the result
+//! does not depend on the thread count.
 
 mod binned_sah;
 
-use crate::math::{Aabb, Vec3};
+use glam::Vec4;
+
+use crate::math::Aabb;
 
 use super::node::BvhNode;
 
 /// Build settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BuildParams {
-    /// SAH bins per axis.
+    /// SAH bins per axis (at most `binned_sah::MAX_BINS`).
     pub bins: usize,
     /// Largest leaf; also the size under which a leaf is always allowed.
     pub max_leaf: usize,
@@ -31,79 +37,163 @@ impl Default for BuildParams {
 const SAH_DEPTH_LIMIT: usize = 40;
 pub const MAX_DEPTH: usize = 64;
 
+/// Subtrees at least this large are built in parallel with their sibling. Below it the cost
+/// of a separate node vector outweighs the gain.
+const PARALLEL_MIN: usize = 16 * 1024;
+
 /// The flat tree and the primitive order its leaves refer to.
 pub struct BuiltBvh {
     pub nodes: Vec<BvhNode>,
     pub order: Vec<u32>,
 }
 
+/// A primitive as the builder sees it: its box (16-byte SIMD corners, so that growing a box
+/// is two vector instructions) and its index in the input, in the spare lane of `min`.
+#[derive(Debug, Clone, Copy)]
+struct PrimRef {
+    min: Vec4,
+    max: Vec4,
+}
+
+impl PrimRef {
+    fn new(b: &Aabb, index: u32) -> PrimRef {
+        PrimRef { min: b.min.extend(f32::from_bits(index)), max: b.max.extend(0.0) }
+    }
+
+    #[inline(always)]
+    fn index(&self) -> u32 {
+        self.min.w.to_bits()
+    }
+
+    /// Twice the centroid (w lane meaningless): binning only needs it up to a common scale.
+    #[inline(always)]
+    fn centroid2(&self) -> Vec4 {
+        self.min + self.max
+    }
+}
+
+/// A box with SIMD corners; only x, y, z mean anything.
+#[derive(Debug, Clone, Copy)]
+struct Box4 {
+    min: Vec4,
+    max: Vec4,
+}
+
+impl Box4 {
+    const EMPTY: Box4 =
+        Box4 { min: Vec4::splat(f32::INFINITY), max: Vec4::splat(f32::NEG_INFINITY) };
+
+    #[inline(always)]
+    fn grow(self, p: &PrimRef) -> Box4 {
+        Box4 { min: self.min.min(p.min), max: self.max.max(p.max) }
+    }
+
+    #[inline(always)]
+    fn grow_point(self, p: Vec4) -> Box4 {
+        Box4 { min: self.min.min(p), max: self.max.max(p) }
+    }
+
+    #[inline(always)]
+    fn union(self, o: Box4) -> Box4 {
+        Box4 { min: self.min.min(o.min), max: self.max.max(o.max) }
+    }
+
+    fn aabb(self) -> Aabb {
+        Aabb { min: self.min.truncate(), max: self.max.truncate() }
+    }
+
+    /// Half the surface area, 0 for an empty box.
+    #[inline(always)]
+    fn half_area(self) -> f32 {
+        let e = (self.max - self.min).max(Vec4::ZERO);
+        e.x * e.y + e.y * e.z + e.z * e.x
+    }
+}
+
 /// Builds a BVH over primitives with the given bounds. An empty input gives one empty leaf.
 pub fn build(bounds: &[Aabb], params: BuildParams) -> BuiltBvh {
-    let centroids: Vec<Vec3> = bounds.iter().map(Aabb::center).collect();
-    let mut b = Builder {
-        bounds,
-        centroids,
-        params,
-        order: (0..bounds.len() as u32).collect(),
-        nodes: Vec::new(),
-    };
-    b.nodes.reserve(2 * bounds.len().max(1));
-    b.build_node(0, bounds.len(), 0);
-    // The reservation above is the worst case (one triangle per leaf); give back the rest so
-    // the memory the benchmark reports is what traversal uses.
-    b.nodes.shrink_to_fit();
-    BuiltBvh { nodes: b.nodes, order: b.order }
+    assert!(params.bins >= 2 && params.bins <= binned_sah::MAX_BINS, "bins out of range");
+    let mut prims: Vec<PrimRef> =
+        bounds.iter().enumerate().map(|(i, b)| PrimRef::new(b, i as u32)).collect();
+    let mut nodes = Vec::with_capacity(bounds.len().max(1));
+    build_node(&mut nodes, &mut prims, 0, 0, &params);
+    // The reservation is a guess; give back the rest so the memory the benchmark reports is
+    // what traversal uses.
+    nodes.shrink_to_fit();
+    BuiltBvh { nodes, order: prims.iter().map(PrimRef::index).collect() }
 }
 
-struct Builder<'a> {
-    bounds: &'a [Aabb],
-    centroids: Vec<Vec3>,
-    params: BuildParams,
-    order: Vec<u32>,
-    nodes: Vec<BvhNode>,
-}
-
-impl Builder<'_> {
-    /// Builds the subtree over `order[first .. first + count]` and returns its node index.
-    fn build_node(&mut self, first: usize, count: usize, depth: usize) -> u32 {
-        let index = self.nodes.len();
-        let range = &self.order[first..first + count];
-        let (bounds, centroid_bounds) =
-            range.iter().fold((Aabb::EMPTY, Aabb::EMPTY), |(b, c), &i| {
-                (b.union(self.bounds[i as usize]), c.grow(self.centroids[i as usize]))
-            });
-        let (min, max) = if bounds.is_empty() {
-            ([0.0; 3], [0.0; 3])
-        } else {
-            (bounds.min.into(), bounds.max.into())
-        };
-        self.nodes.push(BvhNode { min, index: first as u32, max, count: count as u32 });
-
-        let small = count <= self.params.max_leaf;
-        if count <= 1 {
-            return index as u32;
-        }
-        let split = if depth < SAH_DEPTH_LIMIT {
-            binned_sah::find_split(self, first, count, bounds, centroid_bounds)
-        } else {
-            None
-        };
-        let left_count = match split {
-            Some(s) if !small || s.cost < count as f32 => {
-                binned_sah::partition(self, first, count, s)
-            }
-            Some(_) => return index as u32, // a leaf is cheaper
-            None if small => return index as u32,
-            // Too many primitives to leave and no useful split (all centroids equal, or too
-            // deep): halve the range. Leaves stay small and the recursion ends.
-            None => count / 2,
-        };
-        let left_count =
-            if left_count == 0 || left_count == count { count / 2 } else { left_count };
-        self.build_node(first, left_count, depth + 1);
-        let right = self.build_node(first + left_count, count - left_count, depth + 1);
-        self.nodes[index].index = right;
-        self.nodes[index].count = 0;
-        index as u32
+/// Appends the subtree over `prims` (which start at primitive `first` of the final order) to
+/// `nodes` in depth-first order and returns its root's index in `nodes`.
+fn build_node(
+    nodes: &mut Vec<BvhNode>,
+    prims: &mut [PrimRef],
+    first: usize,
+    depth: usize,
+    params: &BuildParams,
+) -> u32 {
+    let index = nodes.len();
+    let count = prims.len();
+    let (bounds, centroids) = prims
+        .iter()
+        .fold((Box4::EMPTY, Box4::EMPTY), |(b, c), p| (b.grow(p), c.grow_point(p.centroid2())));
+    let aabb = bounds.aabb();
+    let (min, max) =
+        if aabb.is_empty() { ([0.0; 3], [0.0; 3]) } else { (aabb.min.into(), aabb.max.into()) };
+    nodes.push(BvhNode { min, index: first as u32, max, count: count as u32 });
+    if count <= 1 {
+        return index as u32;
     }
+
+    let small = count <= params.max_leaf;
+    let split = if depth < SAH_DEPTH_LIMIT {
+        binned_sah::find_split(prims, bounds, centroids, params)
+    } else {
+        None
+    };
+    let left_count = match split {
+        Some(s) if !small || s.cost < count as f32 => binned_sah::partition(prims, s),
+        Some(_) => return index as u32, // a leaf is cheaper
+        None if small => return index as u32,
+        // Too many primitives to leave and no useful split (all centroids equal, or too
+        // deep): halve the range. Leaves stay small and the recursion ends.
+        None => count / 2,
+    };
+    let left_count = if left_count == 0 || left_count == count { count / 2 } else { left_count };
+    let (left, right) = prims.split_at_mut(left_count);
+
+    let right_index = if count >= PARALLEL_MIN {
+        // Both halves into their own vectors at once, then appended: the left subtree right
+        // after this node, the right one after it, interior links shifted by where each lands.
+        let build_alone = |prims: &mut [PrimRef], first: usize| {
+            let mut sub = Vec::with_capacity(prims.len() / 2);
+            build_node(&mut sub, prims, first, depth + 1, params);
+            sub
+        };
+        let (l, r) =
+            rayon::join(|| build_alone(left, first), || build_alone(right, first + left_count));
+        append_shifted(nodes, &l);
+        let right_index = nodes.len() as u32;
+        append_shifted(nodes, &r);
+        right_index
+    } else {
+        build_node(nodes, left, first, depth + 1, params);
+        build_node(nodes, right, first + left_count, depth + 1, params)
+    };
+    nodes[index].index = right_index;
+    nodes[index].count = 0;
+    index as u32
+}
+
+/// Appends a subtree built in its own vector; its interior nodes' child links are relative to
+/// that vector, so they move by the offset at which it lands.
+fn append_shifted(nodes: &mut Vec<BvhNode>, sub: &[BvhNode]) {
+    let offset = nodes.len() as u32;
+    nodes.extend(sub.iter().map(|n| {
+        let mut n = *n;
+        if !n.is_leaf() {
+            n.index += offset;
+        }
+        n
+    }));
 }

@@ -1,0 +1,160 @@
+//! How cost grows with triangle count: Mrays/s per ray set and traversal, BVH build time, and
+//! bytes per triangle against triangle count, from `pathtracer bench --json` lines, as SVG
+//! (PERF.md, "Scaling").
+//!
+//! ```sh
+//! for n in 10000 100000 1000000 4000000; do
+//!   target/release/pathtracer gen tori $n --seed 1 -o out/tori$n.dae
+//!   target/release/pathtracer bench out/tori$n.dae --threads 1 --json >> out/scaling.jsonl
+//! done
+//! cargo run --release --example scaling_chart -- out/scaling.jsonl assets/figures/scaling.svg
+//! ```
+
+use std::collections::BTreeMap;
+
+use plotters::prelude::*;
+
+/// The fields of one bench line that the chart uses.
+struct Row {
+    triangles: f64,
+    series: String,
+    mrays: f64,
+    build_ms: f64,
+    bytes_per_triangle: f64,
+}
+
+fn main() {
+    if let Err(e) = run() {
+        eprintln!("error: {e}");
+        std::process::exit(2);
+    }
+}
+
+fn run() -> Result<(), String> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let [input, output] = args.as_slice() else {
+        return Err("usage: scaling_chart BENCH.jsonl OUT.svg".into());
+    };
+    let text = std::fs::read_to_string(input).map_err(|e| format!("{input}: {e}"))?;
+    let rows: Vec<Row> = text
+        .lines()
+        .filter(|l| !l.trim().is_empty())
+        .enumerate()
+        .map(|(i, l)| parse_row(l).map_err(|e| format!("{input}:{}: {e}", i + 1)))
+        .collect::<Result<_, _>>()?;
+    if rows.is_empty() {
+        return Err(format!("{input}: no bench lines"));
+    }
+    draw(&rows, output).map_err(|e| format!("{output}: {e}"))?;
+    println!("wrote {output}");
+    Ok(())
+}
+
+/// The value of `"key":` in a flat JSON object as written by `BenchResult::to_json`.
+fn field<'a>(line: &'a str, key: &str) -> Result<&'a str, String> {
+    let pat = format!("\"{key}\":");
+    let start = line.find(&pat).ok_or(format!("no field {key}"))? + pat.len();
+    let rest = &line[start..];
+    let end = rest.find([',', '}']).ok_or(format!("field {key} is not terminated"))?;
+    Ok(rest[..end].trim_matches('"'))
+}
+
+fn number(line: &str, key: &str) -> Result<f64, String> {
+    let v = field(line, key)?;
+    v.parse().map_err(|_| format!("field {key}: '{v}' is not a number"))
+}
+
+fn parse_row(line: &str) -> Result<Row, String> {
+    Ok(Row {
+        triangles: number(line, "triangles")?,
+        series: format!(
+            "{} {} ({}t)",
+            field(line, "ray_set")?,
+            field(line, "traversal")?,
+            field(line, "threads")?
+        ),
+        mrays: number(line, "mrays_per_s")?,
+        build_ms: number(line, "build_ms")?,
+        bytes_per_triangle: number(line, "bytes_per_triangle")?,
+    })
+}
+
+/// 10000 -> "10k", 4000000 -> "4M".
+fn count_label(x: f64) -> String {
+    match x {
+        x if x >= 1e6 => format!("{}M", (x / 1e6 * 10.0).round() / 10.0),
+        x if x >= 1e3 => format!("{}k", (x / 1e3).round()),
+        x => format!("{x:.0}"),
+    }
+}
+
+type DrawResult = Result<(), Box<dyn std::error::Error>>;
+
+fn draw(rows: &[Row], path: &str) -> DrawResult {
+    let root = SVGBackend::new(path, (1200, 450)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (left, right) = root.split_horizontally(700);
+    let tris = rows.iter().map(|r| r.triangles);
+    let (t_lo, t_hi) =
+        (tris.clone().fold(f64::MAX, f64::min) / 1.5, tris.fold(0.0, f64::max) * 1.5);
+
+    // Throughput, one line per (ray set, traversal, threads).
+    let mut series: BTreeMap<&str, Vec<(f64, f64)>> = BTreeMap::new();
+    for r in rows {
+        series.entry(&r.series).or_default().push((r.triangles, r.mrays));
+    }
+    let m_hi = rows.iter().map(|r| r.mrays).fold(0.0, f64::max) * 1.15;
+    let mut chart = ChartBuilder::on(&left)
+        .caption("Throughput vs triangle count (tori scenes)", ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(55)
+        .build_cartesian_2d((t_lo..t_hi).log_scale(), 0.0..m_hi)?;
+    chart
+        .configure_mesh()
+        .x_desc("triangles")
+        .y_desc("Mrays/s")
+        .x_labels(4)
+        .x_label_formatter(&|x| count_label(*x))
+        .draw()?;
+    for (i, (name, mut pts)) in series.into_iter().enumerate() {
+        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let color = Palette99::pick(i).to_rgba();
+        chart.draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))?.label(name).legend(
+            move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2)),
+        );
+        chart.draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))?;
+    }
+    chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw()?;
+
+    // Build time and memory: one point per scene (they do not depend on the ray set).
+    let mut per_scene: BTreeMap<u64, (f64, f64)> = BTreeMap::new();
+    for r in rows {
+        per_scene.insert(r.triangles as u64, (r.build_ms, r.bytes_per_triangle));
+    }
+    let b_hi = per_scene.values().map(|v| v.0).fold(1.0, f64::max) * 2.0;
+    let b_lo = per_scene.values().map(|v| v.0).fold(f64::MAX, f64::min).max(0.01) / 2.0;
+    let mut chart = ChartBuilder::on(&right)
+        .caption("BVH build time (bytes/triangle at each point)", ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(55)
+        .build_cartesian_2d((t_lo..t_hi).log_scale(), (b_lo..b_hi).log_scale())?;
+    chart
+        .configure_mesh()
+        .x_desc("triangles")
+        .y_desc("build ms")
+        .x_labels(4)
+        .x_label_formatter(&|x| count_label(*x))
+        .y_label_formatter(&|y| format!("{y:.0}"))
+        .draw()?;
+    let pts: Vec<(f64, f64)> = per_scene.iter().map(|(&t, v)| (t as f64, v.0)).collect();
+    chart.draw_series(LineSeries::new(pts.clone(), BLUE.stroke_width(2)))?;
+    chart.draw_series(per_scene.iter().map(|(&t, v)| {
+        EmptyElement::at((t as f64, v.0))
+            + Circle::new((0, 0), 3, BLUE.filled())
+            + Text::new(format!("{:.0} B", v.1), (6, -14), ("sans-serif", 13))
+    }))?;
+    root.present()?;
+    Ok(())
+}
