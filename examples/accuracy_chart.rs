@@ -104,26 +104,31 @@ fn run() -> Result<(), String> {
             Ok(img)
         };
         let (ref_light, ref_mis) = (reference(light)?, reference(mis)?);
-        let sweep = |config: RenderConfig, reference: &Image| {
-            convergence::sweep(&scene, &accel, &config, reference, None, &spps)
-                .map_err(|e| e.to_string())
-        };
         let with = |integrator| RenderConfig { integrator, ..base.clone() };
         let adaptive = RenderConfig { adaptive: Some((4, 0.05)), ..with(light) };
-        let curves = vec![
-            Curve { name: "hemisphere (-H)", color: RED, points: sweep(with(hemi), &ref_mis)? },
-            Curve { name: "light sampling", color: BLUE, points: sweep(with(light), &ref_light)? },
-            Curve {
-                name: "MIS (--shading mis)",
-                color: GREEN,
-                points: sweep(with(mis), &ref_mis)?,
-            },
-            Curve {
-                name: "adaptive (-a 4 0.05)",
-                color: MAGENTA,
-                points: sweep(adaptive, &ref_light)?,
-            },
+        let mut curves = vec![
+            Curve { name: "hemisphere (-H)", color: RED, points: Vec::new() },
+            Curve { name: "light sampling", color: BLUE, points: Vec::new() },
+            Curve { name: "MIS (--shading mis)", color: GREEN, points: Vec::new() },
+            Curve { name: "adaptive (-a 4 0.05)", color: MAGENTA, points: Vec::new() },
         ];
+        let configs = [
+            (with(hemi), &ref_mis),
+            (with(light), &ref_light),
+            (with(mis), &ref_mis),
+            (adaptive, &ref_light),
+        ];
+        // The machine is shared: interleave the curves (and rotate their order) at each sample
+        // count, so a slow spell slows every curve alike instead of one whole curve.
+        for (k, &spp) in spps.iter().enumerate() {
+            for j in 0..configs.len() {
+                let i = (j + k) % configs.len();
+                let (config, reference) = &configs[i];
+                let p = convergence::sweep(&scene, &accel, config, reference, None, &[spp])
+                    .map_err(|e| e.to_string())?;
+                curves[i].points.extend(p);
+            }
+        }
         let title = format!(
             "{name} -m {depth} ({}), {w}x{h}, {threads} threads: error vs render time",
             if depth == 1 { "direct light" } else { "path tracing" }
