@@ -276,6 +276,9 @@ fn check(text: &str, tally: &Tally) {
             if let Err(e) = scene.validate() {
                 tally.bad_messages.fetch_add(1, Ordering::Relaxed);
                 fail(format!("loader returned an invalid scene: {e}"));
+            } else if !scene.lights.iter().all(collada::light_is_finite) {
+                tally.bad_messages.fetch_add(1, Ordering::Relaxed);
+                fail("loader returned a light that is not finite".into());
             }
         }
         Ok(Err(e)) => {
@@ -374,6 +377,15 @@ fn fuzz_regressions() {
         let e = r.expect("loader panicked").expect_err("should be an error").to_string();
         assert!(!e.is_empty() && !e.contains('\n'), "{e}");
     }
+    // Finite matrix entries whose product overflows put a light at infinity.
+    let huge_light = r##"<COLLADA><library_lights><light id="l"><technique_common><point>
+        <color>1 1 1</color></point></technique_common></light></library_lights>
+        <library_visual_scenes><visual_scene id="s"><node id="a">
+        <matrix>3e38 0 0 3e38 0 1 0 0 0 0 1 0 0 0 0 1</matrix>
+        <node id="b"><matrix>1 0 0 3e38 0 1 0 0 0 0 1 0 0 0 0 1</matrix>
+        <instance_light url="#l"/></node></node></visual_scene></library_visual_scenes></COLLADA>"##;
+    let e = collada::parse(huge_light).expect_err("a light at infinity is an error").to_string();
+    assert!(e.contains("not finite"), "{e}");
     // A node that instances itself: unbounded recursion (a stack overflow aborts the process,
     // which catch_unwind cannot catch) unless the loader bounds the depth.
     let cyclic = r##"<COLLADA><library_nodes><node id="a"><instance_node url="#a"/></node></library_nodes>

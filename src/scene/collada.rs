@@ -465,7 +465,26 @@ impl<'a, 'input> Loader<'a, 'input> {
         // Unreferenced positions (from a degenerate or skipped polygon) are harmless; positions
         // that no triangle uses are kept so indices stay simple.
         self.scene.validate()?;
+        // Finite numbers can still multiply to infinity through node transforms (the fuzzer's
+        // 3.4e38 entries); a light at infinity would turn every pixel it reaches into NaN.
+        for (i, light) in self.scene.lights.iter().enumerate() {
+            if !light_is_finite(light) {
+                bail!("light {i} ({}) is not finite after its node transforms", light.kind());
+            }
+        }
         Ok(self.scene)
+    }
+}
+
+/// Whether every number of a light is finite.
+pub fn light_is_finite(light: &Light) -> bool {
+    match *light {
+        Light::Area { position, direction, dim_x, dim_y, radiance } => {
+            [position, direction, dim_x, dim_y, radiance].iter().all(|v| v.is_finite())
+        }
+        Light::Point { position, radiance } => position.is_finite() && radiance.is_finite(),
+        Light::Directional { direction, radiance } => direction.is_finite() && radiance.is_finite(),
+        Light::Ambient { radiance } => radiance.is_finite(),
     }
 }
 
