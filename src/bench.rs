@@ -208,7 +208,16 @@ impl Traversal {
 
     /// Whether this build can trace with this traversal.
     pub fn available(self) -> bool {
-        self == Traversal::Single
+        true
+    }
+
+    /// Packet width (1 for single rays).
+    pub fn width(self) -> usize {
+        match self {
+            Traversal::Single => 1,
+            Traversal::Packet4 => 4,
+            Traversal::Packet8 => 8,
+        }
     }
 
     pub fn parse(s: &str) -> crate::Result<Traversal> {
@@ -259,24 +268,35 @@ pub fn trace_once(
 
 fn trace_chunk(accel: &Accel, rays: &[Ray], set: RaySet, traversal: Traversal) -> TraceTotals {
     let mut out = TraceTotals::default();
-    match traversal {
-        Traversal::Single => {
-            for r in rays {
-                if set.is_occlusion() {
-                    out.hits += accel.occluded(r, &mut out.stats) as u64;
-                } else if let Some(h) = accel.intersect(r, &mut out.stats) {
-                    out.hits += 1;
-                    out.t_sum += h.t as f64;
-                }
+    let (mut hits, mut blocked) = ([None; 8], [false; 8]);
+    // Rays are grouped into packets in file order; CHUNK is a multiple of 8, so only the
+    // set's last packet can be partly filled.
+    for group in rays.chunks(traversal.width()) {
+        let n = group.len();
+        match (traversal, set.is_occlusion()) {
+            (Traversal::Single, true) => blocked[0] = accel.occluded(&group[0], &mut out.stats),
+            (Traversal::Single, false) => hits[0] = accel.intersect(&group[0], &mut out.stats),
+            (Traversal::Packet4, true) => {
+                accel.occluded_packet::<4>(group, &mut blocked, &mut out.stats)
+            }
+            (Traversal::Packet4, false) => {
+                accel.intersect_packet::<4>(group, &mut hits, &mut out.stats)
+            }
+            (Traversal::Packet8, true) => {
+                accel.occluded_packet::<8>(group, &mut blocked, &mut out.stats)
+            }
+            (Traversal::Packet8, false) => {
+                accel.intersect_packet::<8>(group, &mut hits, &mut out.stats)
             }
         }
-        // Callers check `Traversal::available` first.
-        Traversal::Packet4 | Traversal::Packet8 => {
-            unreachable!("packet traversal is not available yet")
+        if set.is_occlusion() {
+            out.hits += blocked[..n].iter().filter(|&&b| b).count() as u64;
+        } else {
+            for h in hits[..n].iter().flatten() {
+                out.hits += 1;
+                out.t_sum += h.t as f64;
+            }
         }
-    }
-    if set.is_occlusion() {
-        out.t_sum = 0.0;
     }
     out
 }

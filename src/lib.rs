@@ -21,6 +21,7 @@ pub mod procedural;
 pub mod render;
 pub mod sampler;
 pub mod scene;
+pub mod simd;
 pub mod wavefront;
 
 pub use error::{Error, Result};

@@ -6,6 +6,8 @@
 
 pub mod build;
 pub mod node;
+pub mod packet;
+pub mod traverse_packet;
 pub mod traverse_single;
 
 use std::time::{Duration, Instant};
@@ -14,9 +16,11 @@ use crate::geometry::sphere::intersect_sphere;
 use crate::geometry::TriangleSoa;
 use crate::math::{Aabb, Hit, Ray};
 use crate::scene::{Scene, Sphere};
+use crate::simd::{LaneWidth, Lanes, VFloat};
 
 pub use build::BuildParams;
 pub use node::BvhNode;
+pub use packet::RayPacket;
 
 /// Sphere hits carry this bit in `Hit::prim`; the low bits are the sphere index.
 pub const SPHERE_BIT: u32 = 1 << 31;
@@ -31,8 +35,19 @@ pub enum AccelKind {
     BruteForce,
 }
 
-/// Exact work counters. `node_tests` counts ray-box tests, `triangle_tests` ray-triangle tests
-/// (a SIMD leaf test of k triangles counts k), `sphere_tests` ray-sphere tests, `rays` queries.
+/// Exact work counters, deterministic for a given traversal and ray order.
+///
+/// - `rays`: queries (a packet counts its active lanes).
+/// - `node_tests`: ray-box tests, one per ray per box. Single-ray traversal tests the root and
+///   then both children of every interior node it visits. A packet-box test counts one test
+///   per lane active at that node (lanes that entered its box and whose best hit is not yet
+///   nearer), not W: inactive and finished lanes cost nothing in the count. A lane handed to
+///   single-ray fallback counts as single-ray traversal from then on.
+/// - `triangle_tests`: ray-triangle tests. One ray against a leaf of k triangles counts k (the
+///   8-wide SIMD test of k < 8 triangles still counts k; an any-hit ray that stops at a
+///   blocking group of 8 counts the groups tested). A packet leaf counts, per triangle, the
+///   lanes active at that leaf (any-hit: the lanes not yet blocked).
+/// - `sphere_tests`: ray-sphere tests (spheres are not in the BVH).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct TraceStats {
     pub rays: u64,
@@ -138,5 +153,130 @@ impl Accel {
             stats.sphere_tests += 1;
             intersect_sphere(ray, s).is_some()
         })
+    }
+
+    /// Closest hits of up to `W` rays traced as one packet: `hits[i]` answers `rays[i]`
+    /// (`rays.len() <= W`, `hits.len() >= rays.len()`), bit-identical to `intersect`.
+    pub fn intersect_packet<const W: usize>(
+        &self,
+        rays: &[Ray],
+        hits: &mut [Option<Hit>],
+        stats: &mut TraceStats,
+    ) where
+        Lanes<W>: LaneWidth,
+    {
+        let n = rays.len().min(W);
+        let packet = RayPacket::<VFloat<W>>::from_rays(&rays[..n]);
+        self.intersect_ray_packet::<W>(&packet, traverse_packet::default_fallback(W), hits, stats);
+    }
+
+    /// Closest hits of a prepared packet; `hits[i]` answers lane `i` (`None` for inactive
+    /// lanes). `fallback`: subtrees entered by at most this many lanes finish ray by ray.
+    pub fn intersect_ray_packet<const W: usize>(
+        &self,
+        packet: &RayPacket<VFloat<W>>,
+        fallback: u32,
+        hits: &mut [Option<Hit>],
+        stats: &mut TraceStats,
+    ) where
+        Lanes<W>: LaneWidth,
+    {
+        let mut p = *packet;
+        let active = p.active_bits();
+        stats.rays += active.count_ones() as u64;
+        let found = traverse_packet::intersect(&self.nodes, &self.tris, &mut p, fallback, stats);
+        for (i, out) in hits.iter_mut().enumerate().take(W) {
+            if active & (1 << i) == 0 {
+                *out = None;
+                continue;
+            }
+            let mut best = found.get(i);
+            if !self.spheres.is_empty() {
+                // The spheres after the triangles, in the order `intersect` tests them.
+                let mut r = p.ray(i);
+                for (k, s) in self.spheres.iter().enumerate() {
+                    stats.sphere_tests += 1;
+                    if let Some(t) = intersect_sphere(&r, s) {
+                        r.t_max = t;
+                        best = Some(Hit { t, u: 0.0, v: 0.0, prim: SPHERE_BIT | k as u32 });
+                    }
+                }
+            }
+            *out = best;
+        }
+    }
+
+    /// Occlusion of up to `W` rays traced as one packet: `blocked[i]` answers `rays[i]`,
+    /// identical to `occluded`.
+    pub fn occluded_packet<const W: usize>(
+        &self,
+        rays: &[Ray],
+        blocked: &mut [bool],
+        stats: &mut TraceStats,
+    ) where
+        Lanes<W>: LaneWidth,
+    {
+        let n = rays.len().min(W);
+        let packet = RayPacket::<VFloat<W>>::from_rays(&rays[..n]);
+        self.occluded_ray_packet::<W>(
+            &packet,
+            traverse_packet::default_fallback(W),
+            blocked,
+            stats,
+        );
+    }
+
+    /// Occlusion of a prepared packet; `blocked[i]` answers lane `i` (false when inactive).
+    pub fn occluded_ray_packet<const W: usize>(
+        &self,
+        packet: &RayPacket<VFloat<W>>,
+        fallback: u32,
+        blocked: &mut [bool],
+        stats: &mut TraceStats,
+    ) where
+        Lanes<W>: LaneWidth,
+    {
+        let active = packet.active_bits();
+        stats.rays += active.count_ones() as u64;
+        let bits = traverse_packet::occluded(&self.nodes, &self.tris, packet, fallback, stats);
+        for (i, out) in blocked.iter_mut().enumerate().take(W) {
+            *out = bits & (1 << i) != 0
+                || (active & (1 << i) != 0 && {
+                    let r = packet.ray(i);
+                    self.spheres.iter().any(|s| {
+                        stats.sphere_tests += 1;
+                        intersect_sphere(&r, s).is_some()
+                    })
+                });
+        }
+    }
+
+    /// Closest hits of any number of rays, `W` at a time in slice order (the last packet
+    /// partly filled).
+    pub fn intersect_packets<const W: usize>(
+        &self,
+        rays: &[Ray],
+        hits: &mut [Option<Hit>],
+        stats: &mut TraceStats,
+    ) where
+        Lanes<W>: LaneWidth,
+    {
+        for (r, h) in rays.chunks(W).zip(hits.chunks_mut(W)) {
+            self.intersect_packet::<W>(r, h, stats);
+        }
+    }
+
+    /// Occlusion of any number of rays, `W` at a time in slice order.
+    pub fn occluded_packets<const W: usize>(
+        &self,
+        rays: &[Ray],
+        blocked: &mut [bool],
+        stats: &mut TraceStats,
+    ) where
+        Lanes<W>: LaneWidth,
+    {
+        for (r, b) in rays.chunks(W).zip(blocked.chunks_mut(W)) {
+            self.occluded_packet::<W>(r, b, stats);
+        }
     }
 }

@@ -2,16 +2,16 @@
 //! t_min <= t <= t_max, u >= 0, v >= 0, u + v <= 1 (u, v: barycentrics of v1 and v2).
 //!
 //! One arithmetic core, generic over the lane type, serves the scalar test, one ray against 8
-//! triangles, and 8 rays against one triangle. The same operations in the same order give
+//! triangles, and W rays (W = 4 or 8) against one triangle. The same operations in the same order give
 //! bit-identical t, u, v in every lane (no fused multiply-add in any of them), which the
 //! tests check lane by lane.
 
 use std::ops::{Add, Mul, Sub};
 
-use wide::f32x8;
+use crate::simd::SimdF32;
 
 /// Three lanes-wide coordinates.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Debug)]
 pub struct V3<T> {
     pub x: T,
     pub y: T,
@@ -73,29 +73,30 @@ pub fn intersect1(
     (u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t >= t_min && t <= t_max).then_some((t, u, v))
 }
 
-/// Eight lanes at once (8 triangles and one ray broadcast, or 8 rays and one triangle
-/// broadcast). Returns the hit mask and t, u, v per lane; `valid` masks out lanes to ignore.
+/// W lanes at once (8 triangles and one ray broadcast, or W rays and one triangle broadcast).
+/// Returns the hit mask and t, u, v per lane; `valid` masks out lanes to ignore.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)] // one SIMD kernel: the five vectors of the test, the interval and the lane mask
-pub fn intersect8(
-    o: V3<f32x8>,
-    d: V3<f32x8>,
-    v0: V3<f32x8>,
-    e1: V3<f32x8>,
-    e2: V3<f32x8>,
-    t_min: f32x8,
-    t_max: f32x8,
-    valid: f32x8,
-) -> (f32x8, f32x8, f32x8, f32x8) {
+pub fn intersect_simd<V: SimdF32>(
+    o: V3<V>,
+    d: V3<V>,
+    v0: V3<V>,
+    e1: V3<V>,
+    e2: V3<V>,
+    t_min: V,
+    t_max: V,
+    valid: V,
+) -> (V, V, V, V) {
     let (det, un, vn, tn) = core(o, d, v0, e1, e2);
-    let inv = f32x8::ONE / det;
+    let one = V::splat(1.0);
+    let inv = one / det;
     let (u, v, t) = (un * inv, vn * inv, tn * inv);
-    let zero = f32x8::ZERO;
+    let zero = V::splat(0.0);
     let hit = valid
         & det.simd_ne(zero)
         & u.simd_ge(zero)
         & v.simd_ge(zero)
-        & (u + v).simd_le(f32x8::ONE)
+        & (u + v).simd_le(one)
         & t.simd_ge(t_min)
         & t.simd_le(t_max);
     (hit, t, u, v)
@@ -103,8 +104,8 @@ pub fn intersect8(
 
 /// Broadcast a scalar vector to all lanes.
 #[inline(always)]
-pub fn splat3(v: glam::Vec3) -> V3<f32x8> {
-    V3 { x: f32x8::splat(v.x), y: f32x8::splat(v.y), z: f32x8::splat(v.z) }
+pub fn splat3<V: SimdF32>(v: glam::Vec3) -> V3<V> {
+    V3 { x: V::splat(v.x), y: V::splat(v.y), z: V::splat(v.z) }
 }
 
 #[inline(always)]
@@ -117,6 +118,7 @@ mod tests {
     use super::*;
     use crate::sampler::Pcg32;
     use glam::Vec3;
+    use wide::f32x8;
 
     fn lane(v: f32x8, i: usize) -> f32 {
         v.to_array()[i]
@@ -160,7 +162,7 @@ mod tests {
                 y: col(&|t| t[2].y - t[0].y),
                 z: col(&|t| t[2].z - t[0].z),
             };
-            let (mask, t, u, v) = intersect8(
+            let (mask, t, u, v) = intersect_simd(
                 splat3(o),
                 splat3(d),
                 v0,
