@@ -196,6 +196,70 @@ mod tests {
         assert!(hits > 1000, "the test must exercise hits: {hits}");
     }
 
+    /// W rays against one broadcast triangle (the packet leaf test), at both widths: every
+    /// lane equals the scalar test exactly.
+    fn rays_vs_one_triangle<V: SimdF32>() -> usize {
+        let mut rng = Pcg32::new(5, V::W as u64);
+        let mut r = || rng.next_f32() * 2.0 - 1.0;
+        let mut hits = 0;
+        for case in 0..5_000 {
+            let tri =
+                [Vec3::new(r(), r(), r()), Vec3::new(r(), r(), r()), Vec3::new(r(), r(), r())];
+            let rays: Vec<(Vec3, Vec3)> = (0..V::W)
+                .map(|k| {
+                    let o = Vec3::new(r(), r(), r() - 3.0);
+                    let mut d = Vec3::new(r() * 0.3, r() * 0.3, 1.0);
+                    if (case + k) % 5 == 0 {
+                        d.y = 0.0;
+                    }
+                    (o, d)
+                })
+                .collect();
+            let col = |f: &dyn Fn(&(Vec3, Vec3)) -> f32| {
+                let a: Vec<f32> = rays.iter().map(f).collect();
+                V::load(&a)
+            };
+            let o = V3 { x: col(&|r| r.0.x), y: col(&|r| r.0.y), z: col(&|r| r.0.z) };
+            let d = V3 { x: col(&|r| r.1.x), y: col(&|r| r.1.y), z: col(&|r| r.1.z) };
+            let (mask, t, u, v) = intersect_simd(
+                o,
+                d,
+                splat3(tri[0]),
+                splat3(tri[1] - tri[0]),
+                splat3(tri[2] - tri[0]),
+                V::splat(0.5),
+                V::splat(3.5),
+                V::first_lanes(V::W),
+            );
+            for (k, ray) in rays.iter().enumerate() {
+                let s = intersect1(
+                    scalar3(ray.0),
+                    scalar3(ray.1),
+                    scalar3(tri[0]),
+                    scalar3(tri[1] - tri[0]),
+                    scalar3(tri[2] - tri[0]),
+                    0.5,
+                    3.5,
+                );
+                assert_eq!(s.is_some(), mask.bitmask() & (1 << k) != 0, "case {case} lane {k}");
+                if let Some((ts, us, vs)) = s {
+                    hits += 1;
+                    assert_eq!(
+                        (ts.to_bits(), us.to_bits(), vs.to_bits()),
+                        (t.lane(k).to_bits(), u.lane(k).to_bits(), v.lane(k).to_bits())
+                    );
+                }
+            }
+        }
+        hits
+    }
+
+    #[test]
+    fn packet_lanes_equal_the_scalar_test() {
+        assert!(rays_vs_one_triangle::<wide::f32x4>() > 500);
+        assert!(rays_vs_one_triangle::<f32x8>() > 1000);
+    }
+
     #[test]
     fn interval_ends_are_inclusive_and_parallel_rays_miss() {
         let tri = [Vec3::new(-1.0, -1.0, 2.0), Vec3::new(1.0, -1.0, 2.0), Vec3::new(0.0, 1.0, 2.0)];
