@@ -237,7 +237,13 @@ fn trace_sample_batch(
     stats.camera_rays += ws.rays.len() as u64;
     let mut depth = 0;
     while !ws.rays.is_empty() {
-        stages::extend(ctx, &ws.rays, &mut ws.hits, &mut stats.trace);
+        stages::extend(
+            ctx,
+            &ws.rays,
+            stages::Coherence::of_depth(depth),
+            &mut ws.hits,
+            &mut stats.trace,
+        );
         ws.next_rays.clear();
         ws.shadow.clear();
         ws.probes.clear();
@@ -249,7 +255,13 @@ fn trace_sample_batch(
         stages::shade(ctx, depth, &ws.rays, &ws.hits, &mut ws.paths, queues);
         stats.shadow_rays += ws.shadow.len() as u64;
         stats.probe_rays += ws.probes.len() as u64;
-        stages::trace_shadow_rays(ctx, &ws.shadow, &mut ws.paths, &mut stats.trace);
+        stages::trace_shadow_rays(
+            ctx,
+            &ws.shadow,
+            stages::Coherence::of_depth(depth),
+            &mut ws.paths,
+            &mut stats.trace,
+        );
         stages::trace_emission_probes(ctx, &ws.probes, &mut ws.paths, &mut stats.trace);
         std::mem::swap(&mut ws.rays, &mut ws.next_rays);
         stats.bounce_rays += ws.rays.len() as u64;
