@@ -10,16 +10,22 @@ use std::ops::{Add, BitAnd, BitOr, Div, Mul, Sub};
 
 use wide::{f32x4, f32x8};
 
+/// The arithmetic shared by f32 and the lane types: what the generic Möller-Trumbore core
+/// needs (so one function serves scalar and SIMD tests).
+pub trait Arith: Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> {
+    fn abs(self) -> Self;
+}
+
+impl Arith for f32 {
+    #[inline(always)]
+    fn abs(self) -> f32 {
+        f32::abs(self)
+    }
+}
+
 /// The operations the traversal and triangle kernels need from a vector of `W` f32 lanes.
 pub trait SimdF32:
-    Copy
-    + Add<Output = Self>
-    + Sub<Output = Self>
-    + Mul<Output = Self>
-    + Div<Output = Self>
-    + BitAnd<Output = Self>
-    + BitOr<Output = Self>
-    + std::fmt::Debug
+    Arith + Div<Output = Self> + BitAnd<Output = Self> + BitOr<Output = Self> + std::fmt::Debug
 {
     /// Lanes.
     const W: usize;
@@ -37,7 +43,6 @@ pub trait SimdF32:
     /// NaN for finite input.
     fn fast_min(self, b: Self) -> Self;
     fn fast_max(self, b: Self) -> Self;
-    fn abs(self) -> Self;
     /// `mask ? t : f` per lane.
     fn select(mask: Self, t: Self, f: Self) -> Self;
     /// Bit `i` set iff lane `i` of the mask is set.
@@ -58,6 +63,13 @@ pub const TRUE: f32 = f32::from_bits(!0);
 
 macro_rules! impl_simd_f32 {
     ($t:ident, $w:literal) => {
+        impl Arith for $t {
+            #[inline(always)]
+            fn abs(self) -> Self {
+                $t::abs(self)
+            }
+        }
+
         impl SimdF32 for $t {
             const W: usize = $w;
             #[inline(always)]
@@ -104,10 +116,6 @@ macro_rules! impl_simd_f32 {
             #[inline(always)]
             fn fast_max(self, b: Self) -> Self {
                 $t::fast_max(self, b)
-            }
-            #[inline(always)]
-            fn abs(self) -> Self {
-                $t::abs(self)
             }
             #[inline(always)]
             fn select(mask: Self, t: Self, f: Self) -> Self {
