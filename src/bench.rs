@@ -268,34 +268,35 @@ pub fn trace_once(
 
 fn trace_chunk(accel: &Accel, rays: &[Ray], set: RaySet, traversal: Traversal) -> TraceTotals {
     let mut out = TraceTotals::default();
-    let (mut hits, mut blocked) = ([None; 8], [false; 8]);
-    // Rays are grouped into packets in file order; CHUNK is a multiple of 8, so only the
+    let stats = &mut out.stats;
+    // Packets take the rays in file order, W at a time; CHUNK is a multiple of 8, so only the
     // set's last packet can be partly filled.
-    for group in rays.chunks(traversal.width()) {
-        let n = group.len();
-        match (traversal, set.is_occlusion()) {
-            (Traversal::Single, true) => blocked[0] = accel.occluded(&group[0], &mut out.stats),
-            (Traversal::Single, false) => hits[0] = accel.intersect(&group[0], &mut out.stats),
-            (Traversal::Packet4, true) => {
-                accel.occluded_packet::<4>(group, &mut blocked, &mut out.stats)
+    if set.is_occlusion() {
+        let mut blocked = vec![false; rays.len()];
+        match traversal {
+            Traversal::Single => {
+                for (b, r) in blocked.iter_mut().zip(rays) {
+                    *b = accel.occluded(r, stats);
+                }
             }
-            (Traversal::Packet4, false) => {
-                accel.intersect_packet::<4>(group, &mut hits, &mut out.stats)
-            }
-            (Traversal::Packet8, true) => {
-                accel.occluded_packet::<8>(group, &mut blocked, &mut out.stats)
-            }
-            (Traversal::Packet8, false) => {
-                accel.intersect_packet::<8>(group, &mut hits, &mut out.stats)
-            }
+            Traversal::Packet4 => accel.occluded_packets::<4>(rays, &mut blocked, stats),
+            Traversal::Packet8 => accel.occluded_packets::<8>(rays, &mut blocked, stats),
         }
-        if set.is_occlusion() {
-            out.hits += blocked[..n].iter().filter(|&&b| b).count() as u64;
-        } else {
-            for h in hits[..n].iter().flatten() {
-                out.hits += 1;
-                out.t_sum += h.t as f64;
+        out.hits = blocked.iter().filter(|&&b| b).count() as u64;
+    } else {
+        let mut hits = vec![None; rays.len()];
+        match traversal {
+            Traversal::Single => {
+                for (h, r) in hits.iter_mut().zip(rays) {
+                    *h = accel.intersect(r, stats);
+                }
             }
+            Traversal::Packet4 => accel.intersect_packets::<4>(rays, &mut hits, stats),
+            Traversal::Packet8 => accel.intersect_packets::<8>(rays, &mut hits, stats),
+        }
+        for h in hits.iter().flatten() {
+            out.hits += 1;
+            out.t_sum += h.t as f64;
         }
     }
     out

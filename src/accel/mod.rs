@@ -21,6 +21,7 @@ use crate::simd::{LaneWidth, Lanes, VFloat};
 pub use build::BuildParams;
 pub use node::BvhNode;
 pub use packet::RayPacket;
+pub use traverse_packet::PacketStack;
 
 /// Sphere hits carry this bit in `Hit::prim`; the low bits are the sphere index.
 pub const SPHERE_BIT: u32 = 1 << 31;
@@ -165,9 +166,9 @@ impl Accel {
     ) where
         Lanes<W>: LaneWidth,
     {
-        let n = rays.len().min(W);
-        let packet = RayPacket::<VFloat<W>>::from_rays(&rays[..n]);
-        self.intersect_ray_packet::<W>(&packet, traverse_packet::default_fallback(W), hits, stats);
+        let packet = RayPacket::<VFloat<W>>::from_rays(rays);
+        let fallback = traverse_packet::default_fallback(W);
+        self.intersect_ray_packet::<W>(&packet, fallback, &mut PacketStack::new(), hits, stats);
     }
 
     /// Closest hits of a prepared packet; `hits[i]` answers lane `i` (`None` for inactive
@@ -176,6 +177,7 @@ impl Accel {
         &self,
         packet: &RayPacket<VFloat<W>>,
         fallback: u32,
+        stack: &mut PacketStack<VFloat<W>>,
         hits: &mut [Option<Hit>],
         stats: &mut TraceStats,
     ) where
@@ -184,7 +186,8 @@ impl Accel {
         let mut p = *packet;
         let active = p.active_bits();
         stats.rays += active.count_ones() as u64;
-        let found = traverse_packet::intersect(&self.nodes, &self.tris, &mut p, fallback, stats);
+        let found =
+            traverse_packet::intersect(&self.nodes, &self.tris, &mut p, fallback, stack, stats);
         for (i, out) in hits.iter_mut().enumerate().take(W) {
             if active & (1 << i) == 0 {
                 *out = None;
@@ -216,14 +219,9 @@ impl Accel {
     ) where
         Lanes<W>: LaneWidth,
     {
-        let n = rays.len().min(W);
-        let packet = RayPacket::<VFloat<W>>::from_rays(&rays[..n]);
-        self.occluded_ray_packet::<W>(
-            &packet,
-            traverse_packet::default_fallback(W),
-            blocked,
-            stats,
-        );
+        let packet = RayPacket::<VFloat<W>>::from_rays(rays);
+        let fallback = traverse_packet::default_fallback(W);
+        self.occluded_ray_packet::<W>(&packet, fallback, &mut PacketStack::new(), blocked, stats);
     }
 
     /// Occlusion of a prepared packet; `blocked[i]` answers lane `i` (false when inactive).
@@ -231,6 +229,7 @@ impl Accel {
         &self,
         packet: &RayPacket<VFloat<W>>,
         fallback: u32,
+        stack: &mut PacketStack<VFloat<W>>,
         blocked: &mut [bool],
         stats: &mut TraceStats,
     ) where
@@ -238,7 +237,8 @@ impl Accel {
     {
         let active = packet.active_bits();
         stats.rays += active.count_ones() as u64;
-        let bits = traverse_packet::occluded(&self.nodes, &self.tris, packet, fallback, stats);
+        let bits =
+            traverse_packet::occluded(&self.nodes, &self.tris, packet, fallback, stack, stats);
         for (i, out) in blocked.iter_mut().enumerate().take(W) {
             *out = bits & (1 << i) != 0
                 || (active & (1 << i) != 0 && {
@@ -261,8 +261,11 @@ impl Accel {
     ) where
         Lanes<W>: LaneWidth,
     {
+        let fallback = traverse_packet::default_fallback(W);
+        let mut stack = PacketStack::new();
         for (r, h) in rays.chunks(W).zip(hits.chunks_mut(W)) {
-            self.intersect_packet::<W>(r, h, stats);
+            let packet = RayPacket::<VFloat<W>>::from_rays(r);
+            self.intersect_ray_packet::<W>(&packet, fallback, &mut stack, h, stats);
         }
     }
 
@@ -275,8 +278,11 @@ impl Accel {
     ) where
         Lanes<W>: LaneWidth,
     {
+        let fallback = traverse_packet::default_fallback(W);
+        let mut stack = PacketStack::new();
         for (r, b) in rays.chunks(W).zip(blocked.chunks_mut(W)) {
-            self.occluded_packet::<W>(r, b, stats);
+            let packet = RayPacket::<VFloat<W>>::from_rays(r);
+            self.occluded_ray_packet::<W>(&packet, fallback, &mut stack, b, stats);
         }
     }
 }

@@ -32,6 +32,15 @@ pub fn safe_recip(d: f32) -> f32 {
     1.0 / d
 }
 
+/// `safe_recip` lane by lane (IEEE division rounds the same in every lane width, so each
+/// lane equals the scalar result bit for bit).
+#[inline(always)]
+pub fn safe_recip_v<V: SimdF32>(d: V) -> V {
+    let tiny = d.abs().simd_lt(V::splat(MIN_DIR));
+    let signed_min = (d & V::splat(-0.0)) | V::splat(MIN_DIR);
+    V::splat(1.0) / V::select(tiny, signed_min, d)
+}
+
 /// W rays, SoA.
 #[derive(Clone, Copy, Debug)]
 pub struct RayPacket<V: SimdF32> {
@@ -52,23 +61,14 @@ impl<V: SimdF32> RayPacket<V> {
     }
 
     /// As `from_rays`, with only the lanes whose bit is set in `active_bits` active.
+    #[inline]
     pub fn from_rays_masked(rays: &[Ray], active_bits: u32) -> RayPacket<V> {
         let n = rays.len().min(V::W);
-        let mut cols = [[0.0f32; MAX_W]; 11];
+        // Transpose the 32-byte records into 8 columns; inactive lanes keep zeros.
+        let mut cols = [[0.0f32; MAX_W]; 8];
         for (i, r) in rays[..n].iter().enumerate() {
-            let vals = [
-                r.origin.x,
-                r.origin.y,
-                r.origin.z,
-                r.dir.x,
-                r.dir.y,
-                r.dir.z,
-                safe_recip(r.dir.x),
-                safe_recip(r.dir.y),
-                safe_recip(r.dir.z),
-                r.t_min,
-                r.t_max,
-            ];
+            let vals =
+                [r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z, r.t_min, r.t_max];
             for (c, v) in cols.iter_mut().zip(vals) {
                 c[i] = v;
             }
@@ -78,13 +78,14 @@ impl<V: SimdF32> RayPacket<V> {
             y: V::load(&cols[k + 1]),
             z: V::load(&cols[k + 2]),
         };
+        let dir = v3(3);
         let filled = if n >= 32 { !0 } else { (1u32 << n) - 1 };
         RayPacket {
             origin: v3(0),
-            dir: v3(3),
-            inv_dir: v3(6),
-            t_min: V::load(&cols[9]),
-            t_max: V::load(&cols[10]),
+            dir,
+            inv_dir: V3 { x: safe_recip_v(dir.x), y: safe_recip_v(dir.y), z: safe_recip_v(dir.z) },
+            t_min: V::load(&cols[6]),
+            t_max: V::load(&cols[7]),
             active: V::from_bitmask(filled & active_bits),
         }
     }

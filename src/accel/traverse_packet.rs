@@ -66,12 +66,32 @@ struct Entry<V> {
     near: V,
 }
 
+/// Traversal stacks, reused from packet to packet: a fixed array of `MAX_DEPTH` entries would
+/// be zeroed for every packet (4 KiB at W = 8), which cost about a tenth of a primary ray.
+pub struct PacketStack<V> {
+    closest: Vec<Entry<V>>,
+    any: Vec<(u32, u32)>,
+}
+
+impl<V> PacketStack<V> {
+    pub fn new() -> PacketStack<V> {
+        PacketStack { closest: Vec::with_capacity(MAX_DEPTH), any: Vec::with_capacity(MAX_DEPTH) }
+    }
+}
+
+impl<V> Default for PacketStack<V> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 /// Closest hits of the packet's active lanes; `p.t_max` shrinks lane by lane as hits are found.
 pub fn intersect<V: SimdF32>(
     nodes: &[BvhNode],
     tris: &TriangleSoa,
     p: &mut RayPacket<V>,
     fallback: u32,
+    stack: &mut PacketStack<V>,
     stats: &mut TraceStats,
 ) -> PacketHits<V> {
     let mut hits = PacketHits::none();
@@ -82,8 +102,8 @@ pub fn intersect<V: SimdF32>(
     }
     let (m, near) = slab(p, &nodes[0], p.t_max);
     let lanes = m.bitmask() & active;
-    let mut stack = [Entry { node: 0, lanes: 0, near: V::splat(0.0) }; MAX_DEPTH];
-    let mut sp = 0;
+    let stack = &mut stack.closest;
+    stack.clear();
     let mut cur = Entry { node: 0, lanes, near };
     loop {
         // Lanes whose best hit is already nearer than the subtree drop out of it.
@@ -117,8 +137,7 @@ pub fn intersect<V: SimdF32>(
                                 Entry { node: a as u32, lanes: la, near: ta },
                             )
                         };
-                        stack[sp] = second;
-                        sp += 1;
+                        stack.push(second);
                         cur = first;
                         continue;
                     } else if la != 0 {
@@ -131,11 +150,10 @@ pub fn intersect<V: SimdF32>(
                 }
             }
         }
-        if sp == 0 {
-            return hits;
+        match stack.pop() {
+            Some(e) => cur = e,
+            None => return hits,
         }
-        sp -= 1;
-        cur = stack[sp];
     }
 }
 
@@ -201,24 +219,16 @@ fn intersect_leaf<V: SimdF32>(
             p.t_max,
             valid,
         );
-        let mut take = mask.bitmask();
+        let take = mask.bitmask();
         if take == 0 {
             continue;
         }
         let prim = tris.prim[i];
-        // Equal distance: the smaller prim wins (as in the single-ray leaf test).
+        // Equal distance: the smaller prim wins (as in the single-ray leaf test). Rare, so
+        // handled lane by lane off the fast path.
         let ties = take & t.simd_eq(p.t_max).bitmask() & hits.hit_bits;
-        let mut bits = ties;
-        while bits != 0 {
-            let k = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            if prim > hits.prim[k] {
-                take &= !(1 << k);
-            }
-        }
-        let m = V::from_bitmask(take);
+        let (take, m) = if ties == 0 { (take, mask) } else { drop_ties(take, ties, prim, hits) };
         p.t_max = V::select(m, t, p.t_max);
-        hits.t = p.t_max;
         hits.u = V::select(m, u, hits.u);
         hits.v = V::select(m, v, hits.v);
         hits.hit_bits |= take;
@@ -229,6 +239,21 @@ fn intersect_leaf<V: SimdF32>(
             hits.prim[k] = prim;
         }
     }
+    hits.t = p.t_max;
+}
+
+/// Removes from `take` the tied lanes whose current hit has a smaller prim.
+#[cold]
+fn drop_ties<V: SimdF32>(mut take: u32, ties: u32, prim: u32, hits: &PacketHits<V>) -> (u32, V) {
+    let mut bits = ties;
+    while bits != 0 {
+        let k = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        if prim > hits.prim[k] {
+            take &= !(1 << k);
+        }
+    }
+    (take, V::from_bitmask(take))
 }
 
 /// Which active lanes are blocked within [t_min, t_max] (bit `i` for lane `i`); stops as soon
@@ -238,6 +263,7 @@ pub fn occluded<V: SimdF32>(
     tris: &TriangleSoa,
     p: &RayPacket<V>,
     fallback: u32,
+    stack: &mut PacketStack<V>,
     stats: &mut TraceStats,
 ) -> u32 {
     let active = p.active_bits();
@@ -247,8 +273,8 @@ pub fn occluded<V: SimdF32>(
     }
     let mut blocked = 0u32;
     let (m, _) = slab(p, &nodes[0], p.t_max);
-    let mut stack = [(0u32, 0u32); MAX_DEPTH];
-    let mut sp = 0;
+    let stack = &mut stack.any;
+    stack.clear();
     let mut cur = (0u32, m.bitmask() & active);
     loop {
         let lanes = cur.1 & !blocked;
@@ -274,8 +300,7 @@ pub fn occluded<V: SimdF32>(
                     stats.node_tests += 2 * lanes.count_ones() as u64;
                     let (la, lb) = (ma.bitmask() & lanes, mb.bitmask() & lanes);
                     if la != 0 && lb != 0 {
-                        stack[sp] = (b as u32, lb);
-                        sp += 1;
+                        stack.push((b as u32, lb));
                     }
                     if la != 0 {
                         cur = (a as u32, la);
@@ -290,11 +315,10 @@ pub fn occluded<V: SimdF32>(
                 return blocked;
             }
         }
-        if sp == 0 {
-            return blocked;
+        match stack.pop() {
+            Some(e) => cur = e,
+            None => return blocked,
         }
-        sp -= 1;
-        cur = stack[sp];
     }
 }
 

@@ -16,21 +16,19 @@ pub fn trace_shadow_rays(
     paths: &mut PathState,
     stats: &mut TraceStats,
 ) {
-    let mut blocked = [false; PACKET];
-    for (k, rays) in shadow.rays.chunks(PACKET).enumerate() {
-        let n = rays.len();
-        match coherence {
-            Coherence::Coherent => ctx.accel.occluded_packet::<PACKET>(rays, &mut blocked, stats),
-            Coherence::Incoherent => {
-                for (b, r) in blocked.iter_mut().zip(rays) {
-                    *b = ctx.accel.occluded(r, stats);
-                }
+    let mut blocked = vec![false; shadow.len()];
+    match coherence {
+        Coherence::Coherent => {
+            ctx.accel.occluded_packets::<PACKET>(&shadow.rays, &mut blocked, stats)
+        }
+        Coherence::Incoherent => {
+            for (b, r) in blocked.iter_mut().zip(&shadow.rays) {
+                *b = ctx.accel.occluded(r, stats);
             }
         }
-        let at = k * PACKET;
-        for (i, _) in blocked[..n].iter().enumerate().filter(|(_, &b)| !b) {
-            paths.radiance[shadow.path[at + i] as usize] += shadow.radiance[at + i];
-        }
+    }
+    for (i, _) in blocked.iter().enumerate().filter(|(_, &b)| !b) {
+        paths.radiance[shadow.path[i] as usize] += shadow.radiance[i];
     }
 }
 
