@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
 
+use crate::accel::traverse_packet::default_fallback;
 use crate::accel::{Accel, TraceStats};
 use crate::math::{orthonormal_basis, Ray, Vec3};
 use crate::sampler::Pcg32;
@@ -253,20 +254,31 @@ impl TraceTotals {
 const CHUNK: usize = 2048;
 
 /// Traces `rays` once with `threads` threads (a pool the caller made).
+/// `fallback`: the packets' single-ray fallback threshold (`None`: the default of the width).
 pub fn trace_once(
     accel: &Accel,
     rays: &[Ray],
     set: RaySet,
     traversal: Traversal,
+    fallback: Option<u32>,
     pool: &rayon::ThreadPool,
 ) -> TraceTotals {
+    let fallback = fallback.unwrap_or(default_fallback(traversal.width()));
     let per_chunk: Vec<TraceTotals> = pool.install(|| {
-        rays.par_chunks(CHUNK).map(|chunk| trace_chunk(accel, chunk, set, traversal)).collect()
+        rays.par_chunks(CHUNK)
+            .map(|chunk| trace_chunk(accel, chunk, set, traversal, fallback))
+            .collect()
     });
     per_chunk.into_iter().fold(TraceTotals::default(), TraceTotals::add)
 }
 
-fn trace_chunk(accel: &Accel, rays: &[Ray], set: RaySet, traversal: Traversal) -> TraceTotals {
+fn trace_chunk(
+    accel: &Accel,
+    rays: &[Ray],
+    set: RaySet,
+    traversal: Traversal,
+    fallback: u32,
+) -> TraceTotals {
     let mut out = TraceTotals::default();
     let stats = &mut out.stats;
     // Packets take the rays in file order, W at a time; CHUNK is a multiple of 8, so only the
@@ -279,8 +291,12 @@ fn trace_chunk(accel: &Accel, rays: &[Ray], set: RaySet, traversal: Traversal) -
                     *b = accel.occluded(r, stats);
                 }
             }
-            Traversal::Packet4 => accel.occluded_packets::<4>(rays, &mut blocked, stats),
-            Traversal::Packet8 => accel.occluded_packets::<8>(rays, &mut blocked, stats),
+            Traversal::Packet4 => {
+                accel.occluded_packets_with::<4>(rays, fallback, &mut blocked, stats)
+            }
+            Traversal::Packet8 => {
+                accel.occluded_packets_with::<8>(rays, fallback, &mut blocked, stats)
+            }
         }
         out.hits = blocked.iter().filter(|&&b| b).count() as u64;
     } else {
@@ -291,8 +307,12 @@ fn trace_chunk(accel: &Accel, rays: &[Ray], set: RaySet, traversal: Traversal) -
                     *h = accel.intersect(r, stats);
                 }
             }
-            Traversal::Packet4 => accel.intersect_packets::<4>(rays, &mut hits, stats),
-            Traversal::Packet8 => accel.intersect_packets::<8>(rays, &mut hits, stats),
+            Traversal::Packet4 => {
+                accel.intersect_packets_with::<4>(rays, fallback, &mut hits, stats)
+            }
+            Traversal::Packet8 => {
+                accel.intersect_packets_with::<8>(rays, fallback, &mut hits, stats)
+            }
         }
         for h in hits.iter().flatten() {
             out.hits += 1;
@@ -359,14 +379,15 @@ pub fn time_trace(
     rays: &[Ray],
     set: RaySet,
     traversal: Traversal,
+    fallback: Option<u32>,
     pool: &rayon::ThreadPool,
     reps: usize,
 ) -> (Duration, TraceTotals) {
-    let totals = trace_once(accel, rays, set, traversal, pool);
+    let totals = trace_once(accel, rays, set, traversal, fallback, pool);
     let best = (0..reps.max(1))
         .map(|_| {
             let t0 = Instant::now();
-            let again = trace_once(accel, rays, set, traversal, pool);
+            let again = trace_once(accel, rays, set, traversal, fallback, pool);
             let dt = t0.elapsed();
             debug_assert_eq!(again.hits, totals.hits);
             dt

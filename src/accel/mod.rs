@@ -261,7 +261,19 @@ impl Accel {
     ) where
         Lanes<W>: LaneWidth,
     {
-        let fallback = traverse_packet::default_fallback(W);
+        self.intersect_packets_with::<W>(rays, traverse_packet::default_fallback(W), hits, stats);
+    }
+
+    /// `intersect_packets` with an explicit single-ray fallback threshold (for measuring it).
+    pub fn intersect_packets_with<const W: usize>(
+        &self,
+        rays: &[Ray],
+        fallback: u32,
+        hits: &mut [Option<Hit>],
+        stats: &mut TraceStats,
+    ) where
+        Lanes<W>: LaneWidth,
+    {
         let mut stack = PacketStack::new();
         for (r, h) in rays.chunks(W).zip(hits.chunks_mut(W)) {
             let packet = RayPacket::<VFloat<W>>::from_rays(r);
@@ -278,7 +290,19 @@ impl Accel {
     ) where
         Lanes<W>: LaneWidth,
     {
-        let fallback = traverse_packet::default_fallback(W);
+        self.occluded_packets_with::<W>(rays, traverse_packet::default_fallback(W), blocked, stats);
+    }
+
+    /// `occluded_packets` with an explicit single-ray fallback threshold.
+    pub fn occluded_packets_with<const W: usize>(
+        &self,
+        rays: &[Ray],
+        fallback: u32,
+        blocked: &mut [bool],
+        stats: &mut TraceStats,
+    ) where
+        Lanes<W>: LaneWidth,
+    {
         let mut stack = PacketStack::new();
         for (r, b) in rays.chunks(W).zip(blocked.chunks_mut(W)) {
             let packet = RayPacket::<VFloat<W>>::from_rays(r);

@@ -22,7 +22,10 @@ use crate::geometry::triangles::TriangleSoa;
 use crate::simd::SimdF32;
 
 /// Default single-ray fallback thresholds: a subtree entered by at most this many lanes is
-/// finished one ray at a time (measured in PERF.md, "Traversal kernels").
+/// finished one ray at a time. Measured (PERF.md, "Traversal kernels"): with our scalar-box
+/// single-ray traversal every threshold above 0 was slower at both widths (a packet lane
+/// walks a node as cheaply as a lone ray does), so the fallback is off by default; it stays
+/// for a wider single-ray BVH, which would change that balance.
 pub const FALLBACK_4: u32 = 0;
 pub const FALLBACK_8: u32 = 0;
 
