@@ -4,6 +4,7 @@
 //!
 //! ```text
 //! scene file -> scene (model + COLLADA loader + camera)
+//!            -> simd (lane-width-generic f32x4 / f32x8 helpers)
 //!            -> geometry (SoA triangles, Möller-Trumbore, spheres)
 //!            -> accel (binned-SAH BVH, flat nodes, single-ray and packet traversal)
 //!            -> wavefront (generate -> extend -> shade -> shadow -> accumulate)
