@@ -46,6 +46,8 @@ pub struct RenderContext<'a> {
     /// Adaptive sampling: (samples per batch, tolerance), see `PixelStats::converged`.
     pub adaptive: Option<(u32, f32)>,
     pub seed: u64,
+    /// Packets for coherent queues (see `stages::Coherence`); `false`: single rays only.
+    pub packets: bool,
     /// Smallest offset for spawned rays: 1e-5 of the scene's bounding-box diagonal.
     pub scene_epsilon: f32,
 }
@@ -240,7 +242,7 @@ fn trace_sample_batch(
         stages::extend(
             ctx,
             &ws.rays,
-            stages::Coherence::of_depth(depth),
+            stages::Coherence::of_depth(depth, ctx.packets),
             &mut ws.hits,
             &mut stats.trace,
         );
@@ -258,7 +260,7 @@ fn trace_sample_batch(
         stages::trace_shadow_rays(
             ctx,
             &ws.shadow,
-            stages::Coherence::of_depth(depth),
+            stages::Coherence::of_depth(depth, ctx.packets),
             &mut ws.paths,
             &mut stats.trace,
         );

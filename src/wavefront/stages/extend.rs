@@ -15,9 +15,10 @@ pub enum Coherence {
 }
 
 impl Coherence {
-    /// Camera rays (depth 0) are coherent; every later bounce is not.
-    pub fn of_depth(depth: u32) -> Coherence {
-        if depth == 0 {
+    /// Camera rays (depth 0) are coherent; every later bounce is not. `packets: false`
+    /// treats every queue as incoherent (single rays throughout).
+    pub fn of_depth(depth: u32, packets: bool) -> Coherence {
+        if depth == 0 && packets {
             Coherence::Coherent
         } else {
             Coherence::Incoherent
