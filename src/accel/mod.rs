@@ -9,6 +9,7 @@ pub mod node;
 pub mod packet;
 pub mod traverse_packet;
 pub mod traverse_single;
+pub mod wide;
 
 use std::time::{Duration, Instant};
 
@@ -68,6 +69,8 @@ impl TraceStats {
 
 pub struct Accel {
     nodes: Vec<BvhNode>,
+    /// The same tree collapsed to 4-wide nodes, for single-ray occlusion queries.
+    nodes4: Vec<wide::Bvh4Node>,
     tris: TriangleSoa,
     spheres: Vec<Sphere>,
     bounds: Aabb,
@@ -100,6 +103,7 @@ impl Accel {
         let tris = TriangleSoa::from_order(&corners, &order);
         let nodes = if tris.is_empty() { Vec::new() } else { nodes };
         Accel {
+            nodes4: wide::collapse(&nodes),
             nodes,
             tris,
             spheres: scene.spheres.clone(),
@@ -124,9 +128,11 @@ impl Accel {
         &self.tris
     }
 
-    /// Bytes held by the structure: nodes plus triangle columns.
+    /// Bytes held by the structure: both node arrays plus triangle columns.
     pub fn memory_bytes(&self) -> usize {
-        self.nodes.capacity() * std::mem::size_of::<BvhNode>() + self.tris.memory_bytes()
+        self.nodes.capacity() * std::mem::size_of::<BvhNode>()
+            + self.nodes4.capacity() * std::mem::size_of::<wide::Bvh4Node>()
+            + self.tris.memory_bytes()
     }
 
     /// The closest hit along the ray within [t_min, t_max].
@@ -147,7 +153,8 @@ impl Accel {
     /// Whether anything blocks the ray within [t_min, t_max].
     pub fn occluded(&self, ray: &Ray, stats: &mut TraceStats) -> bool {
         stats.rays += 1;
-        if traverse_single::occluded(&self.nodes, &self.tris, ray, stats) {
+        // Any hit through the 4-wide tree: faster than the binary one (PERF.md).
+        if wide::occluded(&self.nodes4, &self.tris, ray, stats) {
             return true;
         }
         self.spheres.iter().any(|s| {

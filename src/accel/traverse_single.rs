@@ -93,8 +93,21 @@ fn intersect_leaf(
     best: &mut Option<Hit>,
     stats: &mut TraceStats,
 ) {
+    intersect_leaf_range(tris, n.index as usize, n.count as usize, ray, best, stats)
+}
+
+/// The triangles `first .. first + count` against the ray, 8 at a time; shrinks `ray.t_max`
+/// and records the closest hit.
+#[inline]
+pub fn intersect_leaf_range(
+    tris: &TriangleSoa,
+    first: usize,
+    count: usize,
+    ray: &mut Ray,
+    best: &mut Option<Hit>,
+    stats: &mut TraceStats,
+) {
     let (o, d) = (splat3(ray.origin), splat3(ray.dir));
-    let (first, count) = (n.index as usize, n.count as usize);
     stats.triangle_tests += count as u64;
     for at in (first..first + count).step_by(LANES) {
         let valid = first_lanes(first + count - at);
@@ -138,8 +151,19 @@ fn intersect_leaf(
 /// Whether any of the leaf's triangles blocks the ray.
 #[inline]
 fn occluded_leaf(tris: &TriangleSoa, n: &BvhNode, ray: &Ray, stats: &mut TraceStats) -> bool {
+    occluded_leaf_range(tris, n.index as usize, n.count as usize, ray, stats)
+}
+
+/// Whether any of the triangles `first .. first + count` blocks the ray.
+#[inline]
+pub fn occluded_leaf_range(
+    tris: &TriangleSoa,
+    first: usize,
+    count: usize,
+    ray: &Ray,
+    stats: &mut TraceStats,
+) -> bool {
     let (o, d) = (splat3(ray.origin), splat3(ray.dir));
-    let (first, count) = (n.index as usize, n.count as usize);
     let (t_min, t_max) = (f32x8::splat(ray.t_min), f32x8::splat(ray.t_max));
     for at in (first..first + count).step_by(LANES) {
         stats.triangle_tests += (first + count - at).min(LANES) as u64;
