@@ -1,7 +1,8 @@
 //! Acceleration structure: the public surface every stage uses.
 //!
 //! Triangles live in a binned-SAH BVH (flat, depth-first, 32-byte nodes) over SoA triangle
-//! columns in leaf order. The course scenes hold at most a handful of analytic spheres, so
+//! columns in leaf order; packets traverse it as built, single rays a 4-wide collapse of it
+//! (`wide.rs`, same leaves). The course scenes hold at most a handful of analytic spheres, so
 //! they are a short list tested after the triangles rather than BVH primitives.
 
 pub mod build;
@@ -40,8 +41,10 @@ pub enum AccelKind {
 /// Exact work counters, deterministic for a given traversal and ray order.
 ///
 /// - `rays`: queries (a packet counts its active lanes).
-/// - `node_tests`: ray-box tests, one per ray per box. Single-ray traversal tests the root and
-///   then both children of every interior node it visits. A packet-box test counts one test
+/// - `node_tests`: ray-box tests, one per ray per box. Single rays (4-wide tree) count the
+///   2-4 child boxes of every node they visit (an empty tree counts 1); the binary tree
+///   (packets, and lanes they hand to single-ray fallback) counts the root and both children
+///   of every interior node visited. A packet-box test counts one test
 ///   per lane active at that node (lanes that entered its box and whose best hit is not yet
 ///   nearer), not W: inactive and finished lanes cost nothing in the count. A lane handed to
 ///   single-ray fallback counts as single-ray traversal from then on.
@@ -69,7 +72,7 @@ impl TraceStats {
 
 pub struct Accel {
     nodes: Vec<BvhNode>,
-    /// The same tree collapsed to 4-wide nodes, for single-ray occlusion queries.
+    /// The same tree collapsed to 4-wide nodes, for single rays (packets use `nodes`).
     nodes4: Vec<wide::Bvh4Node>,
     tris: TriangleSoa,
     spheres: Vec<Sphere>,
@@ -139,7 +142,7 @@ impl Accel {
     pub fn intersect(&self, ray: &Ray, stats: &mut TraceStats) -> Option<Hit> {
         stats.rays += 1;
         let mut r = *ray;
-        let mut best = traverse_single::intersect(&self.nodes, &self.tris, &mut r, stats);
+        let mut best = wide::intersect(&self.nodes4, &self.tris, &mut r, stats);
         for (i, s) in self.spheres.iter().enumerate() {
             stats.sphere_tests += 1;
             if let Some(t) = intersect_sphere(&r, s) {
@@ -153,7 +156,7 @@ impl Accel {
     /// Whether anything blocks the ray within [t_min, t_max].
     pub fn occluded(&self, ray: &Ray, stats: &mut TraceStats) -> bool {
         stats.rays += 1;
-        // Any hit through the 4-wide tree: faster than the binary one (PERF.md).
+        // Single rays use the 4-wide tree, faster than the binary one (PERF.md).
         if wide::occluded(&self.nodes4, &self.tris, ray, stats) {
             return true;
         }

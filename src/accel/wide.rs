@@ -1,9 +1,9 @@
 //! A 4-wide BVH for single rays, collapsed from the binary one: one SIMD slab test checks a
 //! ray against four child boxes, and the tree is about half as deep. Packets keep the binary
-//! tree (their lanes already fill the SIMD width). Measured (PERF.md), it pays for any-hit
-//! queries (shadow rays 1.5-2x faster) but not yet for closest hit, whose front-to-back
-//! sort of up to four children costs more than the shallower tree saves; `Accel` uses it for
-//! `occluded` only. `intersect` here is kept, tested, for further work on that sort.
+//! tree (their lanes already fill the SIMD width). `Accel::intersect` and `occluded` use it
+//! (measured against the binary tree in PERF.md). Closest hit visits entered children
+//! nearest first; one or two entered children (the common cases) skip the general sort,
+//! which alone made the 4-wide closest hit slower than the binary one.
 //!
 //! Leaves are the binary tree's leaves (the same triangle ranges of the SoA store), so leaf
 //! tests, hit ordering and the conservative box test are exactly those of the binary
@@ -200,6 +200,23 @@ pub fn intersect(
             let n = &nodes[cur.0 as usize];
             let (bits, near) = r4.slab(n, ray.t_max);
             stats.node_tests += n.children() as u64;
+            let entry = |j: usize| (n.index[j], n.count[j], near[j]);
+            if bits != 0 && bits & (bits - 1) == 0 {
+                // One child entered (the common case): no sorting.
+                cur = entry(bits.trailing_zeros() as usize);
+                continue;
+            }
+            if bits.count_ones() == 2 {
+                let (a, b) = (
+                    entry(bits.trailing_zeros() as usize),
+                    entry(31 - bits.leading_zeros() as usize),
+                );
+                let (first, second) = if a.2 <= b.2 { (a, b) } else { (b, a) };
+                stack[sp].write(second);
+                sp += 1;
+                cur = first;
+                continue;
+            }
             if bits != 0 {
                 let (kids, len) = sorted_hits(n, bits, &near);
                 for k in (1..len).rev() {
