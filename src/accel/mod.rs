@@ -2,15 +2,15 @@
 //!
 //! Triangles live in a binned-SAH BVH (flat, depth-first, 32-byte nodes) over SoA triangle
 //! columns in leaf order; packets traverse it as built, single rays a 4-wide collapse of it
-//! (`wide.rs`, same leaves). The course scenes hold at most a handful of analytic spheres, so
+//! (`bvh4.rs`, same leaves). The course scenes hold at most a handful of analytic spheres, so
 //! they are a short list tested after the triangles rather than BVH primitives.
 
 pub mod build;
+pub mod bvh4;
 pub mod node;
 pub mod packet;
 pub mod traverse_packet;
 pub mod traverse_single;
-pub mod wide;
 
 use std::time::{Duration, Instant};
 
@@ -73,7 +73,7 @@ impl TraceStats {
 pub struct Accel {
     nodes: Vec<BvhNode>,
     /// The same tree collapsed to 4-wide nodes, for single rays (packets use `nodes`).
-    nodes4: Vec<wide::Bvh4Node>,
+    nodes4: Vec<bvh4::Bvh4Node>,
     tris: TriangleSoa,
     spheres: Vec<Sphere>,
     bounds: Aabb,
@@ -106,7 +106,7 @@ impl Accel {
         let tris = TriangleSoa::from_order(&corners, &order);
         let nodes = if tris.is_empty() { Vec::new() } else { nodes };
         Accel {
-            nodes4: wide::collapse(&nodes),
+            nodes4: bvh4::collapse(&nodes),
             nodes,
             tris,
             spheres: scene.spheres.clone(),
@@ -134,7 +134,7 @@ impl Accel {
     /// Bytes held by the structure: both node arrays plus triangle columns.
     pub fn memory_bytes(&self) -> usize {
         self.nodes.capacity() * std::mem::size_of::<BvhNode>()
-            + self.nodes4.capacity() * std::mem::size_of::<wide::Bvh4Node>()
+            + self.nodes4.capacity() * std::mem::size_of::<bvh4::Bvh4Node>()
             + self.tris.memory_bytes()
     }
 
@@ -142,7 +142,7 @@ impl Accel {
     pub fn intersect(&self, ray: &Ray, stats: &mut TraceStats) -> Option<Hit> {
         stats.rays += 1;
         let mut r = *ray;
-        let mut best = wide::intersect(&self.nodes4, &self.tris, &mut r, stats);
+        let mut best = bvh4::intersect(&self.nodes4, &self.tris, &mut r, stats);
         for (i, s) in self.spheres.iter().enumerate() {
             stats.sphere_tests += 1;
             if let Some(t) = intersect_sphere(&r, s) {
@@ -157,7 +157,7 @@ impl Accel {
     pub fn occluded(&self, ray: &Ray, stats: &mut TraceStats) -> bool {
         stats.rays += 1;
         // Single rays use the 4-wide tree, faster than the binary one (PERF.md).
-        if wide::occluded(&self.nodes4, &self.tris, ray, stats) {
+        if bvh4::occluded(&self.nodes4, &self.tris, ray, stats) {
             return true;
         }
         self.spheres.iter().any(|s| {
