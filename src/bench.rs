@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
 
+use crate::accel::traverse_packet::default_fallback;
 use crate::accel::{Accel, TraceStats};
 use crate::math::{orthonormal_basis, Ray, Vec3};
 use crate::sampler::Pcg32;
@@ -208,7 +209,16 @@ impl Traversal {
 
     /// Whether this build can trace with this traversal.
     pub fn available(self) -> bool {
-        self == Traversal::Single
+        true
+    }
+
+    /// Packet width (1 for single rays).
+    pub fn width(self) -> usize {
+        match self {
+            Traversal::Single => 1,
+            Traversal::Packet4 => 4,
+            Traversal::Packet8 => 8,
+        }
     }
 
     pub fn parse(s: &str) -> crate::Result<Traversal> {
@@ -244,39 +254,70 @@ impl TraceTotals {
 const CHUNK: usize = 2048;
 
 /// Traces `rays` once with `threads` threads (a pool the caller made).
+/// `fallback`: the packets' single-ray fallback threshold (`None`: the default of the width).
 pub fn trace_once(
     accel: &Accel,
     rays: &[Ray],
     set: RaySet,
     traversal: Traversal,
+    fallback: Option<u32>,
     pool: &rayon::ThreadPool,
 ) -> TraceTotals {
+    let fallback = fallback.unwrap_or(default_fallback(traversal.width()));
     let per_chunk: Vec<TraceTotals> = pool.install(|| {
-        rays.par_chunks(CHUNK).map(|chunk| trace_chunk(accel, chunk, set, traversal)).collect()
+        rays.par_chunks(CHUNK)
+            .map(|chunk| trace_chunk(accel, chunk, set, traversal, fallback))
+            .collect()
     });
     per_chunk.into_iter().fold(TraceTotals::default(), TraceTotals::add)
 }
 
-fn trace_chunk(accel: &Accel, rays: &[Ray], set: RaySet, traversal: Traversal) -> TraceTotals {
+fn trace_chunk(
+    accel: &Accel,
+    rays: &[Ray],
+    set: RaySet,
+    traversal: Traversal,
+    fallback: u32,
+) -> TraceTotals {
     let mut out = TraceTotals::default();
-    match traversal {
-        Traversal::Single => {
-            for r in rays {
-                if set.is_occlusion() {
-                    out.hits += accel.occluded(r, &mut out.stats) as u64;
-                } else if let Some(h) = accel.intersect(r, &mut out.stats) {
-                    out.hits += 1;
-                    out.t_sum += h.t as f64;
+    let stats = &mut out.stats;
+    // Packets take the rays in file order, W at a time; CHUNK is a multiple of 8, so only the
+    // set's last packet can be partly filled.
+    if set.is_occlusion() {
+        let mut blocked = vec![false; rays.len()];
+        match traversal {
+            Traversal::Single => {
+                for (b, r) in blocked.iter_mut().zip(rays) {
+                    *b = accel.occluded(r, stats);
                 }
             }
+            Traversal::Packet4 => {
+                accel.occluded_packets_with::<4>(rays, fallback, &mut blocked, stats)
+            }
+            Traversal::Packet8 => {
+                accel.occluded_packets_with::<8>(rays, fallback, &mut blocked, stats)
+            }
         }
-        // Callers check `Traversal::available` first.
-        Traversal::Packet4 | Traversal::Packet8 => {
-            unreachable!("packet traversal is not available yet")
+        out.hits = blocked.iter().filter(|&&b| b).count() as u64;
+    } else {
+        let mut hits = vec![None; rays.len()];
+        match traversal {
+            Traversal::Single => {
+                for (h, r) in hits.iter_mut().zip(rays) {
+                    *h = accel.intersect(r, stats);
+                }
+            }
+            Traversal::Packet4 => {
+                accel.intersect_packets_with::<4>(rays, fallback, &mut hits, stats)
+            }
+            Traversal::Packet8 => {
+                accel.intersect_packets_with::<8>(rays, fallback, &mut hits, stats)
+            }
         }
-    }
-    if set.is_occlusion() {
-        out.t_sum = 0.0;
+        for h in hits.iter().flatten() {
+            out.hits += 1;
+            out.t_sum += h.t as f64;
+        }
     }
     out
 }
@@ -338,14 +379,15 @@ pub fn time_trace(
     rays: &[Ray],
     set: RaySet,
     traversal: Traversal,
+    fallback: Option<u32>,
     pool: &rayon::ThreadPool,
     reps: usize,
 ) -> (Duration, TraceTotals) {
-    let totals = trace_once(accel, rays, set, traversal, pool);
+    let totals = trace_once(accel, rays, set, traversal, fallback, pool);
     let best = (0..reps.max(1))
         .map(|_| {
             let t0 = Instant::now();
-            let again = trace_once(accel, rays, set, traversal, pool);
+            let again = trace_once(accel, rays, set, traversal, fallback, pool);
             let dt = t0.elapsed();
             debug_assert_eq!(again.hits, totals.hits);
             dt

@@ -4,6 +4,7 @@
 //!
 //! ```text
 //! scene file -> scene (model + COLLADA loader + camera)
+//!            -> simd (lane-width-generic f32x4 / f32x8 helpers)
 //!            -> geometry (SoA triangles, Möller-Trumbore, spheres)
 //!            -> accel (binned-SAH BVH, flat nodes, single-ray and packet traversal)
 //!            -> wavefront (generate -> extend -> shade -> shadow -> accumulate)
@@ -23,6 +24,7 @@ pub mod procedural;
 pub mod render;
 pub mod sampler;
 pub mod scene;
+pub mod simd;
 pub mod wavefront;
 
 pub use error::{Error, Result};

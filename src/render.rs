@@ -33,6 +33,9 @@ pub struct RenderConfig {
     /// An explicit camera instead of the course's bounding-box framing (for tests and tools
     /// that need a view the course camera cannot give, such as one inside closed geometry).
     pub camera: Option<Camera>,
+    /// Trace coherent queues (camera rays and their shadow rays) in 8-wide packets; `false`
+    /// traces every ray alone. Both give bit-identical images (tests/traversal_agree.rs).
+    pub packets: bool,
 }
 
 impl Default for RenderConfig {
@@ -49,6 +52,7 @@ impl Default for RenderConfig {
             integrator: Integrator::Normals,
             progress: false,
             camera: None,
+            packets: true,
         }
     }
 }
@@ -90,6 +94,7 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         max_depth: config.max_depth,
         adaptive: config.adaptive,
         seed: config.seed,
+        packets: config.packets,
         scene_epsilon: 1e-5 * bounds.diagonal().max(f32::MIN_POSITIVE),
     };
     let pool = rayon::ThreadPoolBuilder::new()

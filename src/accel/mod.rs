@@ -1,11 +1,15 @@
 //! Acceleration structure: the public surface every stage uses.
 //!
 //! Triangles live in a binned-SAH BVH (flat, depth-first, 32-byte nodes) over SoA triangle
-//! columns in leaf order. The course scenes hold at most a handful of analytic spheres, so
+//! columns in leaf order; packets traverse it as built, single rays a 4-wide collapse of it
+//! (`bvh4.rs`, same leaves). The course scenes hold at most a handful of analytic spheres, so
 //! they are a short list tested after the triangles rather than BVH primitives.
 
 pub mod build;
+pub mod bvh4;
 pub mod node;
+pub mod packet;
+pub mod traverse_packet;
 pub mod traverse_single;
 
 use std::time::{Duration, Instant};
@@ -14,9 +18,12 @@ use crate::geometry::sphere::intersect_sphere;
 use crate::geometry::TriangleSoa;
 use crate::math::{Aabb, Hit, Ray};
 use crate::scene::{Scene, Sphere};
+use crate::simd::{LaneWidth, Lanes, VFloat};
 
 pub use build::BuildParams;
 pub use node::BvhNode;
+pub use packet::RayPacket;
+pub use traverse_packet::PacketStack;
 
 /// Sphere hits carry this bit in `Hit::prim`; the low bits are the sphere index.
 pub const SPHERE_BIT: u32 = 1 << 31;
@@ -31,8 +38,21 @@ pub enum AccelKind {
     BruteForce,
 }
 
-/// Exact work counters. `node_tests` counts ray-box tests, `triangle_tests` ray-triangle tests
-/// (a SIMD leaf test of k triangles counts k), `sphere_tests` ray-sphere tests, `rays` queries.
+/// Exact work counters, deterministic for a given traversal and ray order.
+///
+/// - `rays`: queries (a packet counts its active lanes).
+/// - `node_tests`: ray-box tests, one per ray per box. Single rays (4-wide tree) count the
+///   2-4 child boxes of every node they visit (an empty tree counts 1); the binary tree
+///   (packets, and lanes they hand to single-ray fallback) counts the root and both children
+///   of every interior node visited. A packet-box test counts one test
+///   per lane active at that node (lanes that entered its box and whose best hit is not yet
+///   nearer), not W: inactive and finished lanes cost nothing in the count. A lane handed to
+///   single-ray fallback counts as single-ray traversal from then on.
+/// - `triangle_tests`: ray-triangle tests. One ray against a leaf of k triangles counts k (the
+///   8-wide SIMD test of k < 8 triangles still counts k; an any-hit ray that stops at a
+///   blocking group of 8 counts the groups tested). A packet leaf counts, per triangle, the
+///   lanes active at that leaf (any-hit: the lanes not yet blocked).
+/// - `sphere_tests`: ray-sphere tests (spheres are not in the BVH).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct TraceStats {
     pub rays: u64,
@@ -52,6 +72,8 @@ impl TraceStats {
 
 pub struct Accel {
     nodes: Vec<BvhNode>,
+    /// The same tree collapsed to 4-wide nodes, for single rays (packets use `nodes`).
+    nodes4: Vec<bvh4::Bvh4Node>,
     tris: TriangleSoa,
     spheres: Vec<Sphere>,
     bounds: Aabb,
@@ -84,6 +106,7 @@ impl Accel {
         let tris = TriangleSoa::from_order(&corners, &order);
         let nodes = if tris.is_empty() { Vec::new() } else { nodes };
         Accel {
+            nodes4: bvh4::collapse(&nodes),
             nodes,
             tris,
             spheres: scene.spheres.clone(),
@@ -108,16 +131,18 @@ impl Accel {
         &self.tris
     }
 
-    /// Bytes held by the structure: nodes plus triangle columns.
+    /// Bytes held by the structure: both node arrays plus triangle columns.
     pub fn memory_bytes(&self) -> usize {
-        self.nodes.capacity() * std::mem::size_of::<BvhNode>() + self.tris.memory_bytes()
+        self.nodes.capacity() * std::mem::size_of::<BvhNode>()
+            + self.nodes4.capacity() * std::mem::size_of::<bvh4::Bvh4Node>()
+            + self.tris.memory_bytes()
     }
 
     /// The closest hit along the ray within [t_min, t_max].
     pub fn intersect(&self, ray: &Ray, stats: &mut TraceStats) -> Option<Hit> {
         stats.rays += 1;
         let mut r = *ray;
-        let mut best = traverse_single::intersect(&self.nodes, &self.tris, &mut r, stats);
+        let mut best = bvh4::intersect(&self.nodes4, &self.tris, &mut r, stats);
         for (i, s) in self.spheres.iter().enumerate() {
             stats.sphere_tests += 1;
             if let Some(t) = intersect_sphere(&r, s) {
@@ -131,12 +156,167 @@ impl Accel {
     /// Whether anything blocks the ray within [t_min, t_max].
     pub fn occluded(&self, ray: &Ray, stats: &mut TraceStats) -> bool {
         stats.rays += 1;
-        if traverse_single::occluded(&self.nodes, &self.tris, ray, stats) {
+        // Single rays use the 4-wide tree, faster than the binary one (PERF.md).
+        if bvh4::occluded(&self.nodes4, &self.tris, ray, stats) {
             return true;
         }
         self.spheres.iter().any(|s| {
             stats.sphere_tests += 1;
             intersect_sphere(ray, s).is_some()
         })
+    }
+
+    /// Closest hits of up to `W` rays traced as one packet: `hits[i]` answers `rays[i]`
+    /// (`rays.len() <= W`, `hits.len() >= rays.len()`), bit-identical to `intersect`.
+    pub fn intersect_packet<const W: usize>(
+        &self,
+        rays: &[Ray],
+        hits: &mut [Option<Hit>],
+        stats: &mut TraceStats,
+    ) where
+        Lanes<W>: LaneWidth,
+    {
+        let packet = RayPacket::<VFloat<W>>::from_rays(rays);
+        let fallback = traverse_packet::default_fallback(W);
+        self.intersect_ray_packet::<W>(&packet, fallback, &mut PacketStack::new(), hits, stats);
+    }
+
+    /// Closest hits of a prepared packet; `hits[i]` answers lane `i` (`None` for inactive
+    /// lanes). `fallback`: subtrees entered by at most this many lanes finish ray by ray.
+    pub fn intersect_ray_packet<const W: usize>(
+        &self,
+        packet: &RayPacket<VFloat<W>>,
+        fallback: u32,
+        stack: &mut PacketStack<VFloat<W>>,
+        hits: &mut [Option<Hit>],
+        stats: &mut TraceStats,
+    ) where
+        Lanes<W>: LaneWidth,
+    {
+        let mut p = *packet;
+        let active = p.active_bits();
+        stats.rays += active.count_ones() as u64;
+        let found =
+            traverse_packet::intersect(&self.nodes, &self.tris, &mut p, fallback, stack, stats);
+        for (i, out) in hits.iter_mut().enumerate().take(W) {
+            if active & (1 << i) == 0 {
+                *out = None;
+                continue;
+            }
+            let mut best = found.get(i);
+            if !self.spheres.is_empty() {
+                // The spheres after the triangles, in the order `intersect` tests them.
+                let mut r = p.ray(i);
+                for (k, s) in self.spheres.iter().enumerate() {
+                    stats.sphere_tests += 1;
+                    if let Some(t) = intersect_sphere(&r, s) {
+                        r.t_max = t;
+                        best = Some(Hit { t, u: 0.0, v: 0.0, prim: SPHERE_BIT | k as u32 });
+                    }
+                }
+            }
+            *out = best;
+        }
+    }
+
+    /// Occlusion of up to `W` rays traced as one packet: `blocked[i]` answers `rays[i]`,
+    /// identical to `occluded`.
+    pub fn occluded_packet<const W: usize>(
+        &self,
+        rays: &[Ray],
+        blocked: &mut [bool],
+        stats: &mut TraceStats,
+    ) where
+        Lanes<W>: LaneWidth,
+    {
+        let packet = RayPacket::<VFloat<W>>::from_rays(rays);
+        let fallback = traverse_packet::default_fallback(W);
+        self.occluded_ray_packet::<W>(&packet, fallback, &mut PacketStack::new(), blocked, stats);
+    }
+
+    /// Occlusion of a prepared packet; `blocked[i]` answers lane `i` (false when inactive).
+    pub fn occluded_ray_packet<const W: usize>(
+        &self,
+        packet: &RayPacket<VFloat<W>>,
+        fallback: u32,
+        stack: &mut PacketStack<VFloat<W>>,
+        blocked: &mut [bool],
+        stats: &mut TraceStats,
+    ) where
+        Lanes<W>: LaneWidth,
+    {
+        let active = packet.active_bits();
+        stats.rays += active.count_ones() as u64;
+        let bits =
+            traverse_packet::occluded(&self.nodes, &self.tris, packet, fallback, stack, stats);
+        for (i, out) in blocked.iter_mut().enumerate().take(W) {
+            *out = bits & (1 << i) != 0
+                || (active & (1 << i) != 0 && {
+                    let r = packet.ray(i);
+                    self.spheres.iter().any(|s| {
+                        stats.sphere_tests += 1;
+                        intersect_sphere(&r, s).is_some()
+                    })
+                });
+        }
+    }
+
+    /// Closest hits of any number of rays, `W` at a time in slice order (the last packet
+    /// partly filled).
+    pub fn intersect_packets<const W: usize>(
+        &self,
+        rays: &[Ray],
+        hits: &mut [Option<Hit>],
+        stats: &mut TraceStats,
+    ) where
+        Lanes<W>: LaneWidth,
+    {
+        self.intersect_packets_with::<W>(rays, traverse_packet::default_fallback(W), hits, stats);
+    }
+
+    /// `intersect_packets` with an explicit single-ray fallback threshold (for measuring it).
+    pub fn intersect_packets_with<const W: usize>(
+        &self,
+        rays: &[Ray],
+        fallback: u32,
+        hits: &mut [Option<Hit>],
+        stats: &mut TraceStats,
+    ) where
+        Lanes<W>: LaneWidth,
+    {
+        let mut stack = PacketStack::new();
+        for (r, h) in rays.chunks(W).zip(hits.chunks_mut(W)) {
+            let packet = RayPacket::<VFloat<W>>::from_rays(r);
+            self.intersect_ray_packet::<W>(&packet, fallback, &mut stack, h, stats);
+        }
+    }
+
+    /// Occlusion of any number of rays, `W` at a time in slice order.
+    pub fn occluded_packets<const W: usize>(
+        &self,
+        rays: &[Ray],
+        blocked: &mut [bool],
+        stats: &mut TraceStats,
+    ) where
+        Lanes<W>: LaneWidth,
+    {
+        self.occluded_packets_with::<W>(rays, traverse_packet::default_fallback(W), blocked, stats);
+    }
+
+    /// `occluded_packets` with an explicit single-ray fallback threshold.
+    pub fn occluded_packets_with<const W: usize>(
+        &self,
+        rays: &[Ray],
+        fallback: u32,
+        blocked: &mut [bool],
+        stats: &mut TraceStats,
+    ) where
+        Lanes<W>: LaneWidth,
+    {
+        let mut stack = PacketStack::new();
+        for (r, b) in rays.chunks(W).zip(blocked.chunks_mut(W)) {
+            let packet = RayPacket::<VFloat<W>>::from_rays(r);
+            self.occluded_ray_packet::<W>(&packet, fallback, &mut stack, b, stats);
+        }
     }
 }

@@ -5,8 +5,9 @@ use wide::f32x8;
 
 use super::build::MAX_DEPTH;
 use super::node::BvhNode;
+use super::packet::{safe_recip, BOX_INFLATE};
 use super::TraceStats;
-use crate::geometry::moller_trumbore::{intersect8, splat3, V3};
+use crate::geometry::moller_trumbore::{intersect_simd, splat3, V3};
 use crate::geometry::triangles::{TriangleSoa, LANES};
 use crate::math::{Hit, Ray, Vec3};
 
@@ -17,23 +18,46 @@ pub struct RayBox {
     t_min: f32,
 }
 
+/// `minps`/`maxps` semantics, so a lane of the packet box test and this scalar test compute
+/// the same thing.
+#[inline(always)]
+fn min_ps(a: f32, b: f32) -> f32 {
+    if a < b {
+        a
+    } else {
+        b
+    }
+}
+
+#[inline(always)]
+fn max_ps(a: f32, b: f32) -> f32 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
 impl RayBox {
     pub fn new(ray: &Ray) -> RayBox {
-        // Zero direction components give infinite reciprocals; `slab` is written so that the
-        // 0 * inf = NaN this can produce never turns a hit into a miss.
-        RayBox { origin: ray.origin, inv_dir: ray.dir.recip(), t_min: ray.t_min }
+        let inv_dir =
+            Vec3::new(safe_recip(ray.dir.x), safe_recip(ray.dir.y), safe_recip(ray.dir.z));
+        RayBox { origin: ray.origin, inv_dir, t_min: ray.t_min }
     }
 
     /// Entry distance into the node's box, or infinity if the ray misses it within
-    /// [t_min, t_max].
+    /// [t_min, t_max] (exit enlarged by `BOX_INFLATE`). The same operations in the same order
+    /// as a lane of `traverse_packet::slab`.
     #[inline(always)]
     pub fn slab(&self, n: &BvhNode, t_max: f32) -> f32 {
-        let t1 = (Vec3::from(n.min) - self.origin) * self.inv_dir;
-        let t2 = (Vec3::from(n.max) - self.origin) * self.inv_dir;
-        // f32::min/max ignore a NaN operand, so a NaN slab (origin on the plane of a box face,
-        // direction parallel to it) does not cut the interval.
-        let near = t1.min(t2).max_element().max(self.t_min);
-        let far = t1.max(t2).min_element().min(t_max);
+        let (o, inv) = (self.origin, self.inv_dir);
+        let lo = |k: usize| (n.min[k] - o[k]) * inv[k];
+        let hi = |k: usize| (n.max[k] - o[k]) * inv[k];
+        let (x0, x1, y0, y1, z0, z1) = (lo(0), hi(0), lo(1), hi(1), lo(2), hi(2));
+        let near =
+            max_ps(max_ps(max_ps(min_ps(x0, x1), min_ps(y0, y1)), min_ps(z0, z1)), self.t_min);
+        let far = min_ps(min_ps(min_ps(max_ps(x0, x1), max_ps(y0, y1)), max_ps(z0, z1)), t_max)
+            * BOX_INFLATE;
         if near <= far {
             near
         } else {
@@ -69,12 +93,25 @@ fn intersect_leaf(
     best: &mut Option<Hit>,
     stats: &mut TraceStats,
 ) {
+    intersect_leaf_range(tris, n.index as usize, n.count as usize, ray, best, stats)
+}
+
+/// The triangles `first .. first + count` against the ray, 8 at a time; shrinks `ray.t_max`
+/// and records the closest hit.
+#[inline]
+pub fn intersect_leaf_range(
+    tris: &TriangleSoa,
+    first: usize,
+    count: usize,
+    ray: &mut Ray,
+    best: &mut Option<Hit>,
+    stats: &mut TraceStats,
+) {
     let (o, d) = (splat3(ray.origin), splat3(ray.dir));
-    let (first, count) = (n.index as usize, n.count as usize);
     stats.triangle_tests += count as u64;
     for at in (first..first + count).step_by(LANES) {
         let valid = first_lanes(first + count - at);
-        let (mask, t, u, v) = intersect8(
+        let (mask, t, u, v) = intersect_simd(
             o,
             d,
             load3(&tris.v0, at),
@@ -88,30 +125,50 @@ fn intersect_leaf(
         if bits == 0 {
             continue;
         }
-        // The nearest hit lane; among equal distances the first (lowest index) wins.
-        let ts = mask.select(t, f32x8::splat(f32::INFINITY)).to_array();
+        // The nearest hit lane; among equal distances the smallest prim wins, here and
+        // against the best so far, so the result does not depend on the order in which
+        // leaves are visited (packet traversal visits them in another order).
+        let ts = t.to_array();
+        let prims = &tris.prim[at..];
         let mut k = bits.trailing_zeros() as usize;
         for lane in k + 1..LANES {
-            if bits & (1 << lane) != 0 && ts[lane] < ts[k] {
+            if bits & (1 << lane) != 0
+                && (ts[lane] < ts[k] || (ts[lane] == ts[k] && prims[lane] < prims[k]))
+            {
                 k = lane;
             }
         }
+        if let Some(b) = best {
+            if ts[k] == b.t && prims[k] > b.prim {
+                continue;
+            }
+        }
         ray.t_max = ts[k];
-        *best =
-            Some(Hit { t: ts[k], u: u.to_array()[k], v: v.to_array()[k], prim: tris.prim[at + k] });
+        *best = Some(Hit { t: ts[k], u: u.to_array()[k], v: v.to_array()[k], prim: prims[k] });
     }
 }
 
 /// Whether any of the leaf's triangles blocks the ray.
 #[inline]
 fn occluded_leaf(tris: &TriangleSoa, n: &BvhNode, ray: &Ray, stats: &mut TraceStats) -> bool {
+    occluded_leaf_range(tris, n.index as usize, n.count as usize, ray, stats)
+}
+
+/// Whether any of the triangles `first .. first + count` blocks the ray.
+#[inline]
+pub fn occluded_leaf_range(
+    tris: &TriangleSoa,
+    first: usize,
+    count: usize,
+    ray: &Ray,
+    stats: &mut TraceStats,
+) -> bool {
     let (o, d) = (splat3(ray.origin), splat3(ray.dir));
-    let (first, count) = (n.index as usize, n.count as usize);
     let (t_min, t_max) = (f32x8::splat(ray.t_min), f32x8::splat(ray.t_max));
     for at in (first..first + count).step_by(LANES) {
         stats.triangle_tests += (first + count - at).min(LANES) as u64;
         let valid = first_lanes(first + count - at);
-        let (mask, ..) = intersect8(
+        let (mask, ..) = intersect_simd(
             o,
             d,
             load3(&tris.v0, at),
@@ -128,26 +185,41 @@ fn occluded_leaf(tris: &TriangleSoa, n: &BvhNode, ray: &Ray, stats: &mut TraceSt
     false
 }
 
-/// Closest hit among the triangles; `ray.t_max` shrinks to the hit distance.
+/// Closest hit among the triangles; `ray.t_max` shrinks to the hit distance. Among hits at
+/// equal distance the smallest prim wins.
 pub fn intersect(
     nodes: &[BvhNode],
     tris: &TriangleSoa,
     ray: &mut Ray,
     stats: &mut TraceStats,
 ) -> Option<Hit> {
-    let rb = RayBox::new(ray);
     let mut best = None;
     stats.node_tests += 1;
-    if nodes.is_empty() || rb.slab(&nodes[0], ray.t_max) == f32::INFINITY {
+    if nodes.is_empty() || RayBox::new(ray).slab(&nodes[0], ray.t_max) == f32::INFINITY {
         return None;
     }
+    intersect_subtree(nodes, tris, 0, ray, &mut best, stats);
+    best
+}
+
+/// Closest hit within the subtree at `root`, whose box the caller has already tested (packet
+/// traversal hands over lanes here); improves on `best`, whose distance is `ray.t_max`.
+pub fn intersect_subtree(
+    nodes: &[BvhNode],
+    tris: &TriangleSoa,
+    root: usize,
+    ray: &mut Ray,
+    best: &mut Option<Hit>,
+    stats: &mut TraceStats,
+) {
+    let rb = RayBox::new(ray);
     let mut stack = [(0u32, 0f32); MAX_DEPTH];
     let mut sp = 0;
-    let mut node = 0usize;
+    let mut node = root;
     loop {
         let n = &nodes[node];
         if n.is_leaf() {
-            intersect_leaf(tris, n, ray, &mut best, stats);
+            intersect_leaf(tris, n, ray, best, stats);
         } else {
             let (a, b) = (node + 1, n.index as usize);
             let (ta, tb) = (rb.slab(&nodes[a], ray.t_max), rb.slab(&nodes[b], ray.t_max));
@@ -162,14 +234,15 @@ pub fn intersect(
                 continue;
             }
         }
-        // Pop the next subtree that can still hold a nearer hit.
+        // Pop the next subtree that can still hold a nearer hit (the same tolerance as the
+        // box test, so a subtree is never dropped that the box test would keep).
         loop {
             if sp == 0 {
-                return best;
+                return;
             }
             sp -= 1;
             let (next, t_entry) = stack[sp];
-            if t_entry <= ray.t_max {
+            if t_entry <= ray.t_max * BOX_INFLATE {
                 node = next as usize;
                 break;
             }
@@ -179,14 +252,25 @@ pub fn intersect(
 
 /// Whether any triangle blocks the ray within [t_min, t_max]; stops at the first one found.
 pub fn occluded(nodes: &[BvhNode], tris: &TriangleSoa, ray: &Ray, stats: &mut TraceStats) -> bool {
-    let rb = RayBox::new(ray);
     stats.node_tests += 1;
-    if nodes.is_empty() || rb.slab(&nodes[0], ray.t_max) == f32::INFINITY {
+    if nodes.is_empty() || RayBox::new(ray).slab(&nodes[0], ray.t_max) == f32::INFINITY {
         return false;
     }
+    occluded_subtree(nodes, tris, 0, ray, stats)
+}
+
+/// Whether any triangle of the subtree at `root` (box already tested) blocks the ray.
+pub fn occluded_subtree(
+    nodes: &[BvhNode],
+    tris: &TriangleSoa,
+    root: usize,
+    ray: &Ray,
+    stats: &mut TraceStats,
+) -> bool {
+    let rb = RayBox::new(ray);
     let mut stack = [0u32; MAX_DEPTH];
     let mut sp = 0;
-    let mut node = 0usize;
+    let mut node = root;
     loop {
         let n = &nodes[node];
         if n.is_leaf() {

@@ -19,6 +19,8 @@ Options:
   --rays-out PREFIX     also write PREFIX.{primary,diffuse,shadow}.rays
   --traversal single|packet4|packet8   (default: every one this build has)
   --threads N           worker threads (default 1)
+  --packet-fallback N   packets hand subtrees entered by <= N lanes to single rays
+                        (default: the tuned value; for measuring it)
   --reps N              timed repetitions after a warm-up; the best counts (default 5)
   --json                one JSON object per line on stdout (the table goes to stderr)";
 
@@ -31,6 +33,7 @@ struct BenchArgs {
     threads: usize,
     reps: usize,
     json: bool,
+    fallback: Option<u32>,
 }
 
 pub fn run(args: &[String]) -> Result<()> {
@@ -78,7 +81,8 @@ pub fn run(args: &[String]) -> Result<()> {
     let mut results = Vec::new();
     for (set, rays) in &sets {
         for &traversal in &a.traversals {
-            let (best, totals) = bench::time_trace(&accel, rays, *set, traversal, &pool, a.reps);
+            let (best, totals) =
+                bench::time_trace(&accel, rays, *set, traversal, a.fallback, &pool, a.reps);
             let r = BenchResult {
                 scene: name.clone(),
                 triangles: scene.triangles.len(),
@@ -155,6 +159,7 @@ fn parse(args: &[String]) -> Result<BenchArgs> {
         threads: 1,
         reps: 5,
         json: false,
+        fallback: None,
     };
     let mut scene = None;
     let mut it = args.iter().map(String::as_str);
@@ -178,6 +183,11 @@ fn parse(args: &[String]) -> Result<BenchArgs> {
             }
             "--reps" => a.reps = parse_in_range("--reps", value("--reps")?, 1, 10_000)? as usize,
             "--json" => a.json = true,
+            "--packet-fallback" => {
+                a.fallback =
+                    Some(parse_in_range("--packet-fallback", value("--packet-fallback")?, 0, 8)?
+                        as u32)
+            }
             s if s.starts_with('-') && s.len() > 1 => {
                 bail!("bench: unknown option '{s}' (see pathtracer bench --help)")
             }

@@ -46,6 +46,8 @@ pub struct RenderContext<'a> {
     /// Adaptive sampling: (samples per batch, tolerance), see `PixelStats::converged`.
     pub adaptive: Option<(u32, f32)>,
     pub seed: u64,
+    /// Packets for coherent queues (see `stages::Coherence`); `false`: single rays only.
+    pub packets: bool,
     /// Smallest offset for spawned rays: 1e-5 of the scene's bounding-box diagonal.
     pub scene_epsilon: f32,
 }
@@ -237,7 +239,13 @@ fn trace_sample_batch(
     stats.camera_rays += ws.rays.len() as u64;
     let mut depth = 0;
     while !ws.rays.is_empty() {
-        stages::extend(ctx, &ws.rays, &mut ws.hits, &mut stats.trace);
+        stages::extend(
+            ctx,
+            &ws.rays,
+            stages::Coherence::of_depth(depth, ctx.packets),
+            &mut ws.hits,
+            &mut stats.trace,
+        );
         ws.next_rays.clear();
         ws.shadow.clear();
         ws.probes.clear();
@@ -249,7 +257,13 @@ fn trace_sample_batch(
         stages::shade(ctx, depth, &ws.rays, &ws.hits, &mut ws.paths, queues);
         stats.shadow_rays += ws.shadow.len() as u64;
         stats.probe_rays += ws.probes.len() as u64;
-        stages::trace_shadow_rays(ctx, &ws.shadow, &mut ws.paths, &mut stats.trace);
+        stages::trace_shadow_rays(
+            ctx,
+            &ws.shadow,
+            stages::Coherence::of_depth(depth, ctx.packets),
+            &mut ws.paths,
+            &mut stats.trace,
+        );
         stages::trace_emission_probes(ctx, &ws.probes, &mut ws.paths, &mut stats.trace);
         std::mem::swap(&mut ws.rays, &mut ws.next_rays);
         stats.bounce_rays += ws.rays.len() as u64;

@@ -4,13 +4,47 @@ use super::super::{RayQueue, RenderContext};
 use crate::accel::TraceStats;
 use crate::math::Hit;
 
+/// How a queue's rays are traced. Camera rays of a tile (and their shadow rays) are coherent:
+/// neighbouring queue entries are samples of the same or adjacent pixels, so 8-wide packets
+/// share most nodes. Bounce rays scatter, so they go one at a time. Packet and single-ray
+/// traversal return bit-identical hits, so the choice never changes the image.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Coherence {
+    Coherent,
+    Incoherent,
+}
+
+impl Coherence {
+    /// Camera rays (depth 0) are coherent; every later bounce is not. `packets: false`
+    /// treats every queue as incoherent (single rays throughout).
+    pub fn of_depth(depth: u32, packets: bool) -> Coherence {
+        if depth == 0 && packets {
+            Coherence::Coherent
+        } else {
+            Coherence::Incoherent
+        }
+    }
+}
+
+/// Packet width for coherent queues.
+pub const PACKET: usize = 8;
+
 /// Finds the closest hit of each queued ray; `hits[i]` answers `rays.rays[i]`.
 pub fn extend(
     ctx: &RenderContext,
     rays: &RayQueue,
+    coherence: Coherence,
     hits: &mut Vec<Option<Hit>>,
     stats: &mut TraceStats,
 ) {
     hits.clear();
-    hits.extend(rays.rays.iter().map(|r| ctx.accel.intersect(r, stats)));
+    match coherence {
+        Coherence::Coherent => {
+            hits.resize(rays.len(), None);
+            ctx.accel.intersect_packets::<PACKET>(&rays.rays, hits, stats);
+        }
+        Coherence::Incoherent => {
+            hits.extend(rays.rays.iter().map(|r| ctx.accel.intersect(r, stats)));
+        }
+    }
 }

@@ -1,20 +1,34 @@
 //! Stage 4: any-hit queries for the shadow-ray queue; unblocked rays deliver their radiance.
 
 use super::super::{PathState, RenderContext, ShadowQueue};
+use super::extend::{Coherence, PACKET};
 use super::Surface;
 use crate::accel::TraceStats;
 use crate::math::Vec3;
 
+/// Shadow rays from camera-ray hits (`Coherence::Coherent`) start at neighbouring points and
+/// head for the same lights, so they go in packets; later ones one at a time. Both give the
+/// same answers, so the image does not depend on the choice.
 pub fn trace_shadow_rays(
     ctx: &RenderContext,
     shadow: &ShadowQueue,
+    coherence: Coherence,
     paths: &mut PathState,
     stats: &mut TraceStats,
 ) {
-    for ((ray, radiance), &path) in shadow.rays.iter().zip(&shadow.radiance).zip(&shadow.path) {
-        if !ctx.accel.occluded(ray, stats) {
-            paths.radiance[path as usize] += *radiance;
+    let mut blocked = vec![false; shadow.len()];
+    match coherence {
+        Coherence::Coherent => {
+            ctx.accel.occluded_packets::<PACKET>(&shadow.rays, &mut blocked, stats)
         }
+        Coherence::Incoherent => {
+            for (b, r) in blocked.iter_mut().zip(&shadow.rays) {
+                *b = ctx.accel.occluded(r, stats);
+            }
+        }
+    }
+    for (i, _) in blocked.iter().enumerate().filter(|(_, &b)| !b) {
+        paths.radiance[shadow.path[i] as usize] += shadow.radiance[i];
     }
 }
 

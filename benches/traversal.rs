@@ -1,0 +1,76 @@
+//! Criterion: the standard ray sets (BENCHMARK.md) on CBbunny, primary / diffuse / shadow x
+//! single / packet4 / packet8, one thread. Skips (with a message) without the course scenes.
+//! The `pathtracer bench` command is the reported measurement; this is for quick A/B work:
+//! `cargo bench --bench traversal`.
+
+use std::hint::black_box;
+use std::path::PathBuf;
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use pathtracer::accel::{Accel, AccelKind, TraceStats};
+use pathtracer::bench::{generate_ray_sets, triangles_only, RaySet, Traversal};
+use pathtracer::math::Ray;
+
+fn scene_path(rel: &str) -> Option<PathBuf> {
+    let dir = std::env::var_os("PT_SCENES").map(PathBuf::from).unwrap_or_else(|| {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes/cs184")
+    });
+    let p = dir.join(rel);
+    if p.is_file() {
+        Some(p)
+    } else {
+        eprintln!("skipped: scenes not found ({})", p.display());
+        None
+    }
+}
+
+fn trace(accel: &Accel, rays: &[Ray], set: RaySet, traversal: Traversal) -> u64 {
+    let mut stats = TraceStats::default();
+    let (mut hits, mut blocked) = ([None; 8], [false; 8]);
+    let mut n = 0;
+    for group in rays.chunks(traversal.width()) {
+        let k = group.len();
+        match (traversal, set.is_occlusion()) {
+            (Traversal::Single, true) => blocked[0] = accel.occluded(&group[0], &mut stats),
+            (Traversal::Single, false) => hits[0] = accel.intersect(&group[0], &mut stats),
+            (Traversal::Packet4, true) => {
+                accel.occluded_packet::<4>(group, &mut blocked, &mut stats)
+            }
+            (Traversal::Packet4, false) => {
+                accel.intersect_packet::<4>(group, &mut hits, &mut stats)
+            }
+            (Traversal::Packet8, true) => {
+                accel.occluded_packet::<8>(group, &mut blocked, &mut stats)
+            }
+            (Traversal::Packet8, false) => {
+                accel.intersect_packet::<8>(group, &mut hits, &mut stats)
+            }
+        }
+        n += if set.is_occlusion() {
+            blocked[..k].iter().filter(|&&b| b).count()
+        } else {
+            hits[..k].iter().flatten().count()
+        } as u64;
+    }
+    n
+}
+
+fn traversal(c: &mut Criterion) {
+    let Some(path) = scene_path("sky/CBbunny.dae") else { return };
+    let scene = triangles_only(&pathtracer::scene::collada::load(&path).expect("CBbunny loads"));
+    let accel = Accel::build(&scene, AccelKind::Bvh);
+    let sets = generate_ray_sets(&scene, &accel);
+    for set in RaySet::ALL {
+        let rays = sets.get(set);
+        let mut g = c.benchmark_group(format!("CBbunny/{}", set.name()));
+        g.throughput(Throughput::Elements(rays.len() as u64));
+        g.sample_size(10);
+        for t in Traversal::ALL {
+            g.bench_function(t.name(), |b| b.iter(|| trace(&accel, black_box(rays), set, t)));
+        }
+        g.finish();
+    }
+}
+
+criterion_group!(benches, traversal);
+criterion_main!(benches);

@@ -1,0 +1,171 @@
+//! `RayPacket<V>`: W rays in structure-of-arrays form (one lane per ray) for packet traversal,
+//! generic over the lane type `V` (`wide::f32x4` or `wide::f32x8`, see `crate::simd`).
+//!
+//! A packet is gathered from a slice of `Ray` records (the queues' layout); lanes past the end
+//! of the slice, or switched off by the caller, are inactive and never produce a hit or count
+//! in `TraceStats`.
+
+use crate::geometry::moller_trumbore::V3;
+use crate::math::{Hit, Ray, Vec3};
+use crate::simd::SimdF32;
+
+/// Widest packet: bounds the per-lane scratch arrays.
+pub const MAX_W: usize = 8;
+
+/// Direction components smaller than this in magnitude are replaced by it (keeping the sign)
+/// before taking reciprocals, as Embree's `rcp_safe` does: the slab test then never computes
+/// 0 * inf = NaN, so it needs no NaN-aware min/max, and a parallel ray still gets slab
+/// distances of about 1e18 x (box - origin), infinite for any practical purpose.
+pub const MIN_DIR: f32 = 1e-18;
+
+/// The box test's tolerance: the exit distance is enlarged by this factor (about 16 ulps) so
+/// that rounding in the slab distances never culls a box whose triangles Möller-Trumbore hits
+/// (Ize, "Robust BVH Ray Traversal", uses 1 + 2 gamma_3 for the slab rounding alone; the
+/// triangle test's own t carries a few ulps more). Conservative culling is what lets packet
+/// and single-ray traversal, which visit nodes in different orders, agree exactly.
+pub const BOX_INFLATE: f32 = 1.0 + 16.0 * f32::EPSILON;
+
+/// The reciprocal used by every slab test, single-ray and packet alike.
+#[inline(always)]
+pub fn safe_recip(d: f32) -> f32 {
+    let d = if d.abs() < MIN_DIR { MIN_DIR.copysign(d) } else { d };
+    1.0 / d
+}
+
+/// `safe_recip` lane by lane (IEEE division rounds the same in every lane width, so each
+/// lane equals the scalar result bit for bit).
+#[inline(always)]
+pub fn safe_recip_v<V: SimdF32>(d: V) -> V {
+    let tiny = d.abs().simd_lt(V::splat(MIN_DIR));
+    let signed_min = (d & V::splat(-0.0)) | V::splat(MIN_DIR);
+    V::splat(1.0) / V::select(tiny, signed_min, d)
+}
+
+/// W rays, SoA.
+#[derive(Clone, Copy, Debug)]
+pub struct RayPacket<V: SimdF32> {
+    pub origin: V3<V>,
+    pub dir: V3<V>,
+    /// `safe_recip` of each direction component.
+    pub inv_dir: V3<V>,
+    pub t_min: V,
+    pub t_max: V,
+    /// Lane mask: all-ones for rays to trace.
+    pub active: V,
+}
+
+impl<V: SimdF32> RayPacket<V> {
+    /// The first `V::W` rays of `rays` (fewer fill the first lanes; the rest are inactive).
+    pub fn from_rays(rays: &[Ray]) -> RayPacket<V> {
+        RayPacket::from_rays_masked(rays, !0)
+    }
+
+    /// As `from_rays`, with only the lanes whose bit is set in `active_bits` active.
+    #[inline]
+    pub fn from_rays_masked(rays: &[Ray], active_bits: u32) -> RayPacket<V> {
+        let n = rays.len().min(V::W);
+        // Transpose the 32-byte records into 8 columns; inactive lanes keep zeros.
+        let mut cols = [[0.0f32; MAX_W]; 8];
+        for (i, r) in rays[..n].iter().enumerate() {
+            let vals =
+                [r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z, r.t_min, r.t_max];
+            for (c, v) in cols.iter_mut().zip(vals) {
+                c[i] = v;
+            }
+        }
+        let v3 = |k: usize| V3 {
+            x: V::load(&cols[k]),
+            y: V::load(&cols[k + 1]),
+            z: V::load(&cols[k + 2]),
+        };
+        let dir = v3(3);
+        let filled = if n >= 32 { !0 } else { (1u32 << n) - 1 };
+        RayPacket {
+            origin: v3(0),
+            dir,
+            inv_dir: V3 { x: safe_recip_v(dir.x), y: safe_recip_v(dir.y), z: safe_recip_v(dir.z) },
+            t_min: V::load(&cols[6]),
+            t_max: V::load(&cols[7]),
+            active: V::from_bitmask(filled & active_bits),
+        }
+    }
+
+    /// Bit `i` set iff lane `i` is active.
+    #[inline(always)]
+    pub fn active_bits(&self) -> u32 {
+        self.active.bitmask()
+    }
+
+    /// Lane `i` as a single ray (with the packet's current `t_max`).
+    #[inline]
+    pub fn ray(&self, i: usize) -> Ray {
+        let l = |v: &V3<V>| Vec3::new(v.x.lane(i), v.y.lane(i), v.z.lane(i));
+        Ray::segment(l(&self.origin), l(&self.dir), self.t_min.lane(i), self.t_max.lane(i))
+    }
+}
+
+/// The closest hits of a packet, per lane.
+#[derive(Clone, Copy, Debug)]
+pub struct PacketHits<V: SimdF32> {
+    pub t: V,
+    pub u: V,
+    pub v: V,
+    pub prim: [u32; MAX_W],
+    /// Bit `i` set iff lane `i` hit something.
+    pub hit_bits: u32,
+}
+
+impl<V: SimdF32> PacketHits<V> {
+    pub fn none() -> PacketHits<V> {
+        PacketHits {
+            t: V::splat(f32::INFINITY),
+            u: V::splat(0.0),
+            v: V::splat(0.0),
+            prim: [u32::MAX; MAX_W],
+            hit_bits: 0,
+        }
+    }
+
+    pub fn get(&self, i: usize) -> Option<Hit> {
+        (self.hit_bits & (1 << i) != 0).then(|| Hit {
+            t: self.t.lane(i),
+            u: self.u.lane(i),
+            v: self.v.lane(i),
+            prim: self.prim[i],
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use wide::{f32x4, f32x8};
+
+    fn gathers<V: SimdF32>() {
+        let rays: Vec<Ray> = (0..3)
+            .map(|i| {
+                Ray::segment(
+                    Vec3::new(i as f32, 1.0, 2.0),
+                    Vec3::new(0.0, -1.0, 2.0),
+                    0.5,
+                    9.0 + i as f32,
+                )
+            })
+            .collect();
+        let p = RayPacket::<V>::from_rays(&rays);
+        assert_eq!(p.active_bits(), 0b111);
+        for (i, r) in rays.iter().enumerate() {
+            assert_eq!(p.ray(i), *r);
+        }
+        assert_eq!(p.inv_dir.x.lane(0), 1e18);
+        assert_eq!(p.inv_dir.y.lane(1), -1.0);
+        let q = RayPacket::<V>::from_rays_masked(&rays, 0b101);
+        assert_eq!(q.active_bits(), 0b101);
+    }
+
+    #[test]
+    fn packets_gather_lanes_and_mask_the_tail() {
+        gathers::<f32x4>();
+        gathers::<f32x8>();
+    }
+}

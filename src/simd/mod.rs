@@ -1,0 +1,180 @@
+//! Lane-width-generic SIMD over `wide::f32x4` and `wide::f32x8`, in the spirit of Embree's
+//! `vfloat<N>`: kernels are written once against [`SimdF32`] and instantiated per width, so the
+//! 4- and 8-wide packet paths (and the scalar Möller-Trumbore, through the arithmetic traits
+//! alone) share one body of code.
+//!
+//! Masks are float vectors whose lanes are all-ones or all-zeros bits, as `wide`'s comparisons
+//! return them.
+
+use std::ops::{Add, BitAnd, BitOr, Div, Mul, Sub};
+
+use wide::{f32x4, f32x8};
+
+/// The arithmetic shared by f32 and the lane types: what the generic Möller-Trumbore core
+/// needs (so one function serves scalar and SIMD tests).
+pub trait Arith: Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> {
+    fn abs(self) -> Self;
+}
+
+impl Arith for f32 {
+    #[inline(always)]
+    fn abs(self) -> f32 {
+        f32::abs(self)
+    }
+}
+
+/// The operations the traversal and triangle kernels need from a vector of `W` f32 lanes.
+pub trait SimdF32:
+    Arith + Div<Output = Self> + BitAnd<Output = Self> + BitOr<Output = Self> + std::fmt::Debug
+{
+    /// Lanes.
+    const W: usize;
+    fn splat(x: f32) -> Self;
+    /// The first `W` values of `s` (`s.len() >= W`).
+    fn load(s: &[f32]) -> Self;
+    fn lane(self, i: usize) -> f32;
+    fn store(self, out: &mut [f32]);
+    fn simd_eq(self, b: Self) -> Self;
+    fn simd_ne(self, b: Self) -> Self;
+    fn simd_lt(self, b: Self) -> Self;
+    fn simd_le(self, b: Self) -> Self;
+    fn simd_ge(self, b: Self) -> Self;
+    /// `minps` semantics (the second operand when either is NaN); the kernels never feed it
+    /// NaN for finite input.
+    fn fast_min(self, b: Self) -> Self;
+    fn fast_max(self, b: Self) -> Self;
+    /// `mask ? t : f` per lane.
+    fn select(mask: Self, t: Self, f: Self) -> Self;
+    /// Bit `i` set iff lane `i` of the mask is set.
+    fn bitmask(self) -> u32;
+
+    /// All-ones in the first `n` lanes.
+    #[inline(always)]
+    fn first_lanes(n: usize) -> Self {
+        Self::from_bitmask(if n >= 32 { !0 } else { (1u32 << n) - 1 })
+    }
+
+    /// The mask whose lane `i` is set iff bit `i` of `bits` is.
+    fn from_bitmask(bits: u32) -> Self;
+}
+
+/// All bits set: a true mask lane.
+pub const TRUE: f32 = f32::from_bits(!0);
+
+macro_rules! impl_simd_f32 {
+    ($t:ident, $w:literal) => {
+        impl Arith for $t {
+            #[inline(always)]
+            fn abs(self) -> Self {
+                $t::abs(self)
+            }
+        }
+
+        impl SimdF32 for $t {
+            const W: usize = $w;
+            #[inline(always)]
+            fn splat(x: f32) -> Self {
+                $t::splat(x)
+            }
+            #[inline(always)]
+            fn load(s: &[f32]) -> Self {
+                let a: [f32; $w] = s[..$w].try_into().expect("slice holds W lanes");
+                $t::new(a)
+            }
+            #[inline(always)]
+            fn lane(self, i: usize) -> f32 {
+                self.as_array()[i]
+            }
+            #[inline(always)]
+            fn store(self, out: &mut [f32]) {
+                out[..$w].copy_from_slice(self.as_array());
+            }
+            #[inline(always)]
+            fn simd_eq(self, b: Self) -> Self {
+                $t::simd_eq(self, b)
+            }
+            #[inline(always)]
+            fn simd_ne(self, b: Self) -> Self {
+                $t::simd_ne(self, b)
+            }
+            #[inline(always)]
+            fn simd_lt(self, b: Self) -> Self {
+                $t::simd_lt(self, b)
+            }
+            #[inline(always)]
+            fn simd_le(self, b: Self) -> Self {
+                $t::simd_le(self, b)
+            }
+            #[inline(always)]
+            fn simd_ge(self, b: Self) -> Self {
+                $t::simd_ge(self, b)
+            }
+            #[inline(always)]
+            fn fast_min(self, b: Self) -> Self {
+                $t::fast_min(self, b)
+            }
+            #[inline(always)]
+            fn fast_max(self, b: Self) -> Self {
+                $t::fast_max(self, b)
+            }
+            #[inline(always)]
+            fn select(mask: Self, t: Self, f: Self) -> Self {
+                mask.select(t, f)
+            }
+            #[inline(always)]
+            fn bitmask(self) -> u32 {
+                self.to_bitmask()
+            }
+            #[inline(always)]
+            fn from_bitmask(bits: u32) -> Self {
+                $t::new(std::array::from_fn(|i| if bits & (1 << i) != 0 { TRUE } else { 0.0 }))
+            }
+        }
+    };
+}
+
+impl_simd_f32!(f32x4, 4);
+impl_simd_f32!(f32x8, 8);
+
+/// Maps a packet width to its lane type: `Lanes<4>` is `f32x4`, `Lanes<8>` is `f32x8`. Public
+/// APIs take the width as a const generic (`intersect_packet::<8>`), kernels the lane type.
+pub struct Lanes<const W: usize>;
+
+pub trait LaneWidth {
+    type F: SimdF32;
+}
+
+impl LaneWidth for Lanes<4> {
+    type F = f32x4;
+}
+
+impl LaneWidth for Lanes<8> {
+    type F = f32x8;
+}
+
+/// The lane type of width `W`.
+pub type VFloat<const W: usize> = <Lanes<W> as LaneWidth>::F;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn masks<V: SimdF32>() {
+        for n in 0..=V::W {
+            let m = V::first_lanes(n);
+            assert_eq!(m.bitmask(), (1u32 << n) - 1);
+            assert_eq!(V::from_bitmask(m.bitmask()).bitmask(), m.bitmask());
+        }
+        let a = V::splat(1.0);
+        let b = V::splat(2.0);
+        assert_eq!(a.simd_lt(b).bitmask(), (1u32 << V::W) - 1);
+        assert_eq!(V::select(V::first_lanes(1), a, b).lane(0), 1.0);
+        assert_eq!(V::select(V::first_lanes(1), a, b).lane(1), 2.0);
+    }
+
+    #[test]
+    fn masks_round_trip_at_both_widths() {
+        masks::<f32x4>();
+        masks::<f32x8>();
+    }
+}
