@@ -180,10 +180,11 @@ fn course_scene_trees_are_valid_and_shallow() {
     let built = build(&boxes, BuildParams::default());
     check_tree(&built.nodes, &built.order, boxes.len(), &boxes);
     let accel = Accel::build(&scene, AccelKind::Bvh);
-    // Bytes per triangle, BVH included (40 of them are the SoA triangle itself): a guard
-    // against a layout or leaf-size regression; the figure is reported by `bench`.
+    // Bytes per triangle, both node arrays included: 40 are the SoA triangle itself, about 36
+    // the binary nodes (packets) and 35 the 4-wide nodes (single rays). A guard against a
+    // layout or leaf-size regression; `bench` reports the figure (PERF.md, "Memory").
     let per_tri = accel.memory_bytes() as f64 / scene.triangles.len() as f64;
-    assert!(per_tri <= 80.0, "{per_tri:.1} bytes per triangle");
+    assert!(per_tri <= 120.0, "{per_tri:.1} bytes per triangle");
 }
 
 #[test]
