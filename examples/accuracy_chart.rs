@@ -2,7 +2,7 @@
 //! ray depth, written as SVG (PERF.md, "Speed versus accuracy").
 //!
 //! ```sh
-//! cargo run --release --example accuracy_chart -- ../shared/scenes/cs184/sky/CBbunny.dae docs
+//! cargo run --release --example accuracy_chart -- ../shared/scenes/cs184/sky/CBbunny.dae assets/charts
 //! ```
 //!
 //! Options after the two paths: `-r W H` (default 160 120), `--ref-spp N` (default 1024),
@@ -45,7 +45,7 @@ fn run() -> Result<(), String> {
     let scene_path = PathBuf::from(
         args.first().cloned().unwrap_or("../shared/scenes/cs184/sky/CBbunny.dae".into()),
     );
-    let out_dir = PathBuf::from(args.get(1).cloned().unwrap_or("docs".into()));
+    let out_dir = PathBuf::from(args.get(1).cloned().unwrap_or("assets/charts".into()));
     let (mut w, mut h, mut ref_spp, mut threads) = (160u32, 120u32, 1024u32, 2usize);
     let mut spps: Vec<u32> = vec![1, 2, 4, 8, 16, 32, 64];
     let mut depths: Vec<u32> = vec![1, 5];

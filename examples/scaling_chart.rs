@@ -7,7 +7,7 @@
 //!   target/release/pathtracer gen tori $n --seed 1 -o out/tori$n.dae
 //!   target/release/pathtracer bench out/tori$n.dae --threads 1 --json >> out/scaling.jsonl
 //! done
-//! cargo run --release --example scaling_chart -- out/scaling.jsonl assets/figures/scaling.svg
+//! cargo run --release --example scaling_chart -- out/scaling.jsonl assets/charts/scaling.svg
 //! ```
 
 use std::collections::BTreeMap;
