@@ -13,6 +13,7 @@ fn main() -> ExitCode {
         Some("compare") => cli::compare::run(&args[1..]),
         Some("converge") => cli::converge::run(&args[1..]),
         Some("gen") => cli::gen::run(&args[1..]),
+        Some("chart") => cli::chart::run(&args[1..]),
         _ => cli::render::run(&args),
     };
     match result {

@@ -240,3 +240,26 @@ fn compare_and_converge_measure_errors_and_fail_cleanly() {
     assert!(pathtracer(&["compare", &a, &reference]).status.success());
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn chart_rejects_bad_input_and_draws_scaling() {
+    let dir = scratch_dir("chart");
+    let svg = dir.join("s.svg");
+    let s = svg.to_str().unwrap();
+    let empty = write(&dir, "empty.jsonl", "");
+    let junk = write(&dir, "junk.jsonl", "{\"triangles\":12}\n");
+    for (args, want) in [
+        (vec!["chart", "pie"], "unknown chart"),
+        (vec!["chart", "scaling", "/no/such.jsonl", s], "/no/such.jsonl"),
+        (vec!["chart", "scaling", empty.to_str().unwrap(), s], "no bench lines"),
+        (vec!["chart", "scaling", junk.to_str().unwrap(), s], "no field"),
+    ] {
+        assert_one_line_error(&pathtracer(&args), want);
+    }
+    assert!(!svg.exists());
+    let line = r#"{"scene":"t.dae","triangles":1000,"ray_set":"primary","rays":10,"threads":1,"traversal":"single","build_ms":1.5,"mrays_per_s":3.0,"node_tests_per_ray":1,"triangle_tests_per_ray":1,"hits":1,"t_sum":1.0,"bytes_per_triangle":70.0}"#;
+    let ok = write(&dir, "ok.jsonl", &format!("{line}\n{}\n", line.replace("1000", "10000")));
+    let out = pathtracer(&["chart", "scaling", ok.to_str().unwrap(), s]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(std::fs::read_to_string(&svg).unwrap().starts_with("<svg"));
+}

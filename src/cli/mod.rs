@@ -2,6 +2,7 @@
 //! is one line on stderr and exit code 2.
 
 pub mod bench;
+pub mod chart;
 pub mod compare;
 pub mod converge;
 pub mod gen;

@@ -16,6 +16,7 @@ Usage: pathtracer [OPTIONS] SCENE.dae
        pathtracer compare IMAGE REFERENCE [--mask MASK]   (error metrics)
        pathtracer converge SCENE.dae --spp LIST ...      (error and time against spp)
        pathtracer gen cornell|tori N -o FILE.dae     (see pathtracer gen --help)
+       pathtracer chart accuracy|scaling ...         (see pathtracer chart --help)
 
 Renders a CS184 COLLADA scene (course camera and lighting conventions).
 

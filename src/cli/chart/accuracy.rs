@@ -2,7 +2,7 @@
 //! ray depth, written as SVG (PERF.md, "Speed versus accuracy").
 //!
 //! ```sh
-//! cargo run --release --example accuracy_chart -- ../shared/scenes/cs184/sky/CBbunny.dae assets/charts
+//! pathtracer chart accuracy ../shared/scenes/cs184/sky/CBbunny.dae assets/charts
 //! ```
 //!
 //! Options after the two paths: `-r W H` (default 160 120), `--ref-spp N` (default 1024),
@@ -33,15 +33,12 @@ struct Curve {
     points: Vec<Point>,
 }
 
-fn main() {
-    if let Err(e) = run() {
-        eprintln!("error: {e}");
-        std::process::exit(2);
-    }
+/// `pathtracer chart accuracy ...`: errors become the CLI's one-line errors.
+pub fn run(args: &[String]) -> pathtracer::Result<()> {
+    run_with(args).map_err(pathtracer::Error::new)
 }
 
-fn run() -> Result<(), String> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
+fn run_with(args: &[String]) -> Result<(), String> {
     let scene_path = PathBuf::from(
         args.first().cloned().unwrap_or("../shared/scenes/cs184/sky/CBbunny.dae".into()),
     );

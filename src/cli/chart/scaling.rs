@@ -7,7 +7,7 @@
 //!   target/release/pathtracer gen tori $n --seed 1 -o out/tori$n.dae
 //!   target/release/pathtracer bench out/tori$n.dae --threads 1 --json >> out/scaling.jsonl
 //! done
-//! cargo run --release --example scaling_chart -- out/scaling.jsonl assets/charts/scaling.svg
+//! target/release/pathtracer chart scaling out/scaling.jsonl assets/charts/scaling.svg
 //! ```
 
 use std::collections::BTreeMap;
@@ -23,17 +23,14 @@ struct Row {
     bytes_per_triangle: f64,
 }
 
-fn main() {
-    if let Err(e) = run() {
-        eprintln!("error: {e}");
-        std::process::exit(2);
-    }
+/// `pathtracer chart scaling ...`: errors become the CLI's one-line errors.
+pub fn run(args: &[String]) -> pathtracer::Result<()> {
+    run_with(args).map_err(pathtracer::Error::new)
 }
 
-fn run() -> Result<(), String> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let [input, output] = args.as_slice() else {
-        return Err("usage: scaling_chart BENCH.jsonl OUT.svg".into());
+fn run_with(args: &[String]) -> Result<(), String> {
+    let [input, output] = args else {
+        return Err("usage: pathtracer chart scaling BENCH.jsonl OUT.svg".into());
     };
     let text = std::fs::read_to_string(input).map_err(|e| format!("{input}: {e}"))?;
     let rows: Vec<Row> = text

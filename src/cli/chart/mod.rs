@@ -1,0 +1,27 @@
+//! `pathtracer chart accuracy|scaling ...`: the charts of PERF.md, drawn by the project itself
+//! (plotters, SVG).
+
+mod accuracy;
+mod scaling;
+
+use pathtracer::{bail, Result};
+
+const USAGE: &str = "\
+Usage: pathtracer chart accuracy SCENE.dae OUT_DIR [-r W H] [--ref-spp N] [--spp LIST] [-t N] [--depths LIST]
+       pathtracer chart scaling BENCH.jsonl OUT.svg
+
+  accuracy   relative RMSE against render time for every integrator, one SVG (and CSV) per depth
+  scaling    Mrays/s, build time and bytes per triangle against triangle count, from
+             `pathtracer bench --json` lines";
+
+pub fn run(args: &[String]) -> Result<()> {
+    match args.first().map(String::as_str) {
+        Some("accuracy") => accuracy::run(&args[1..]),
+        Some("scaling") => scaling::run(&args[1..]),
+        Some("-h" | "--help") | None => {
+            println!("{USAGE}");
+            Ok(())
+        }
+        Some(other) => bail!("chart: unknown chart '{other}' (expected accuracy or scaling)"),
+    }
+}
