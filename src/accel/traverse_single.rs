@@ -84,17 +84,18 @@ fn load3(cols: &[Vec<f32>; 3], at: usize) -> V3<f32x8> {
     V3 { x: load8(&cols[0], at), y: load8(&cols[1], at), z: load8(&cols[2], at) }
 }
 
-/// Tests the leaf's triangles 8 at a time; shrinks `ray.t_max` and records the closest hit.
+/// Tests the leaf's triangles `first .. first + count` 8 at a time; shrinks `ray.t_max` and
+/// records the closest hit. Shared with the wide traversal, so both compute the same hits.
 #[inline]
-fn intersect_leaf(
+pub(super) fn intersect_leaf(
     tris: &TriangleSoa,
-    n: &BvhNode,
+    first: usize,
+    count: usize,
     ray: &mut Ray,
     best: &mut Option<Hit>,
     stats: &mut TraceStats,
 ) {
     let (o, d) = (splat3(ray.origin), splat3(ray.dir));
-    let (first, count) = (n.index as usize, n.count as usize);
     stats.triangle_tests += count as u64;
     for at in (first..first + count).step_by(LANES) {
         let valid = first_lanes(first + count - at);
@@ -135,11 +136,16 @@ fn intersect_leaf(
     }
 }
 
-/// Whether any of the leaf's triangles blocks the ray.
+/// Whether any of the leaf's triangles `first .. first + count` blocks the ray.
 #[inline]
-fn occluded_leaf(tris: &TriangleSoa, n: &BvhNode, ray: &Ray, stats: &mut TraceStats) -> bool {
+pub(super) fn occluded_leaf(
+    tris: &TriangleSoa,
+    first: usize,
+    count: usize,
+    ray: &Ray,
+    stats: &mut TraceStats,
+) -> bool {
     let (o, d) = (splat3(ray.origin), splat3(ray.dir));
-    let (first, count) = (n.index as usize, n.count as usize);
     let (t_min, t_max) = (f32x8::splat(ray.t_min), f32x8::splat(ray.t_max));
     for at in (first..first + count).step_by(LANES) {
         stats.triangle_tests += (first + count - at).min(LANES) as u64;
@@ -195,7 +201,7 @@ pub fn intersect_subtree(
     loop {
         let n = &nodes[node];
         if n.is_leaf() {
-            intersect_leaf(tris, n, ray, best, stats);
+            intersect_leaf(tris, n.index as usize, n.count as usize, ray, best, stats);
         } else {
             let (a, b) = (node + 1, n.index as usize);
             let (ta, tb) = (rb.slab(&nodes[a], ray.t_max), rb.slab(&nodes[b], ray.t_max));
@@ -250,7 +256,7 @@ pub fn occluded_subtree(
     loop {
         let n = &nodes[node];
         if n.is_leaf() {
-            if occluded_leaf(tris, n, ray, stats) {
+            if occluded_leaf(tris, n.index as usize, n.count as usize, ray, stats) {
                 return true;
             }
         } else {

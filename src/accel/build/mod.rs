@@ -1,9 +1,13 @@
-//! BVH construction: a binned SAH build straight into the flat depth-first node array.
+//! BVH construction: a binned SAH build straight into the flat depth-first node array, and
+//! its collapse into the 4-wide tree that single rays traverse (`collapse`).
 //!
 //! Primitives are known only by their bounding boxes and centroids; the builder returns the
 //! node array and the primitive order that the leaves index.
 
 mod binned_sah;
+mod collapse;
+
+pub use collapse::collapse;
 
 use crate::math::{Aabb, Vec3};
 

@@ -1,0 +1,240 @@
+//! One ray through the 4-wide BVH (`wide_node`): closest hit and any hit, with one `f32x4`
+//! slab test for the four children of a node, hit children visited nearest first, a fixed
+//! stack, and leaves tested 8 triangles at a time by the same code as the binary traversal.
+//!
+//! Hits are bit-identical to `traverse_single`'s: the leaves run the same triangle test and
+//! order hits by (t, prim), and each lane of the box test computes exactly what the binary
+//! test computes for that box (the same subtractions and products, no fused multiply-add, the
+//! same `BOX_INFLATE` tolerance), so a box is culled here iff it is culled there.
+
+use std::mem::MaybeUninit;
+
+use wide::f32x4;
+
+use super::build::MAX_DEPTH;
+use super::packet::{safe_recip, BOX_INFLATE};
+use super::traverse_single::{intersect_leaf, occluded_leaf};
+use super::wide_node::{Bvh4Node, LEAF_BIT};
+use super::TraceStats;
+use crate::geometry::triangles::TriangleSoa;
+use crate::math::{Hit, Ray};
+use crate::simd::SimdF32;
+
+/// A wide tree is no deeper than the binary tree it came from, and each level pushes at most
+/// three siblings.
+const STACK: usize = 3 * MAX_DEPTH + 1;
+
+/// A ray prepared for 4-wide box tests: origin and reciprocal direction broadcast, and per
+/// axis whether the direction is negative (then the box maximum is the near plane).
+struct WideRay {
+    origin: [f32x4; 3],
+    inv_dir: [f32x4; 3],
+    neg: [bool; 3],
+    t_min: f32x4,
+}
+
+impl WideRay {
+    #[inline(always)]
+    fn new(ray: &Ray) -> WideRay {
+        let inv = [safe_recip(ray.dir.x), safe_recip(ray.dir.y), safe_recip(ray.dir.z)];
+        WideRay {
+            origin: [ray.origin.x, ray.origin.y, ray.origin.z].map(f32x4::splat),
+            inv_dir: inv.map(f32x4::splat),
+            neg: inv.map(f32::is_sign_negative),
+            t_min: f32x4::splat(ray.t_min),
+        }
+    }
+
+    /// Entry distances into the four child boxes and the bit mask of the boxes the ray enters
+    /// within [t_min, t_max] (exit enlarged by `BOX_INFLATE`). Taking the near plane by the
+    /// direction's sign gives, for finite rays, the same values as the binary test's
+    /// min/max of the two plane distances (the product with a fixed-sign factor is monotonic).
+    #[inline(always)]
+    fn slab(&self, n: &Bvh4Node, t_max: f32) -> (f32x4, u32) {
+        let plane = |axis: usize, max: bool| {
+            // `max as usize` is 0 or 1, so the row index is provably in bounds.
+            let row = f32x4::new(n.bounds[2 * axis + max as usize]);
+            (row - self.origin[axis]) * self.inv_dir[axis]
+        };
+        let near = |axis: usize| plane(axis, self.neg[axis]);
+        let far = |axis: usize| plane(axis, !self.neg[axis]);
+        let t_near = near(0).fast_max(near(1)).fast_max(near(2)).fast_max(self.t_min);
+        let t_far = far(0).fast_min(far(1)).fast_min(far(2)).fast_min(f32x4::splat(t_max))
+            * f32x4::splat(BOX_INFLATE);
+        (t_near, t_near.simd_le(t_far).bitmask())
+    }
+}
+
+/// A fixed traversal stack left uninitialised: a zeroed 2.3 KiB array cost a `memset` per
+/// ray (measured below in PERF.md, "Wide BVH").
+struct Stack<T: Copy> {
+    items: [MaybeUninit<T>; STACK],
+    len: usize,
+}
+
+impl<T: Copy> Stack<T> {
+    #[inline(always)]
+    fn new() -> Self {
+        Stack { items: [const { MaybeUninit::uninit() }; STACK], len: 0 }
+    }
+
+    #[inline(always)]
+    fn push(&mut self, x: T) {
+        self.items[self.len].write(x);
+        self.len += 1;
+    }
+
+    #[inline(always)]
+    fn pop(&mut self) -> Option<T> {
+        if self.len == 0 {
+            return None;
+        }
+        self.len -= 1;
+        // SAFETY: `items[..len]` are initialised: `len` grows only in `push`, after a write.
+        Some(unsafe { self.items[self.len].assume_init() })
+    }
+
+    /// The `k` most recently pushed entries, oldest first (`k <= len`).
+    #[inline(always)]
+    fn top(&mut self, k: usize) -> &mut [T] {
+        let live = &mut self.items[self.len - k..self.len];
+        // SAFETY: these entries are initialised (below `len`), and `MaybeUninit<T>` has the
+        // layout of `T`.
+        unsafe { &mut *(live as *mut [MaybeUninit<T>] as *mut [T]) }
+    }
+}
+
+/// A stacked subtree: a child reference (`Bvh4Node::child`), its leaf count, its entry
+/// distance.
+#[derive(Clone, Copy)]
+struct Entry {
+    child: u32,
+    count: u32,
+    t: f32,
+}
+
+/// Closest hit among the triangles; `ray.t_max` shrinks to the hit distance. Among hits at
+/// equal distance the smallest prim wins.
+pub fn intersect(
+    nodes: &[Bvh4Node],
+    tris: &TriangleSoa,
+    ray: &mut Ray,
+    stats: &mut TraceStats,
+) -> Option<Hit> {
+    let mut best = None;
+    if nodes.is_empty() {
+        return None;
+    }
+    let wr = WideRay::new(ray);
+    let mut stack = Stack::<Entry>::new();
+    // The root node.
+    let (mut child, mut count) = (0u32, 0u32);
+    'visit: loop {
+        while child & LEAF_BIT == 0 {
+            let n = &nodes[child as usize];
+            stats.node_tests += n.children() as u64;
+            let (t_near, mut bits) = wr.slab(n, ray.t_max);
+            if bits == 0 {
+                break;
+            }
+            let t = t_near.to_array();
+            let a = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            if bits == 0 {
+                (child, count) = (n.child[a], n.count[a]);
+                continue;
+            }
+            let b = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            if bits == 0 {
+                let (near, far) = if t[a] <= t[b] { (a, b) } else { (b, a) };
+                stack.push(Entry { child: n.child[far], count: n.count[far], t: t[far] });
+                (child, count) = (n.child[near], n.count[near]);
+                continue;
+            }
+            // Three or four: push them all, sort the pushed entries far to near by insertion,
+            // and take the nearest back off the top.
+            let mut k = 0;
+            for i in [a, b] {
+                stack.push(Entry { child: n.child[i], count: n.count[i], t: t[i] });
+            }
+            while bits != 0 {
+                let i = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                stack.push(Entry { child: n.child[i], count: n.count[i], t: t[i] });
+                k += 1;
+            }
+            let top = stack.top(k + 2);
+            for i in 1..top.len() {
+                let e = top[i];
+                let mut j = i;
+                while j > 0 && top[j - 1].t < e.t {
+                    top[j] = top[j - 1];
+                    j -= 1;
+                }
+                top[j] = e;
+            }
+            let e = stack.pop().expect("three or more entries were pushed");
+            (child, count) = (e.child, e.count);
+        }
+        if child & LEAF_BIT != 0 {
+            intersect_leaf(
+                tris,
+                (child & !LEAF_BIT) as usize,
+                count as usize,
+                ray,
+                &mut best,
+                stats,
+            );
+        }
+        // Pop the next subtree that can still hold a nearer hit (the box test's tolerance, so
+        // nothing is dropped that the box test would keep).
+        loop {
+            let Some(e) = stack.pop() else {
+                return best;
+            };
+            if e.t <= ray.t_max * BOX_INFLATE {
+                (child, count) = (e.child, e.count);
+                continue 'visit;
+            }
+        }
+    }
+}
+
+/// Whether any triangle blocks the ray within [t_min, t_max]; stops at the first one found.
+/// Children are visited in slot order: an any-hit ray gains little from sorting.
+pub fn occluded(nodes: &[Bvh4Node], tris: &TriangleSoa, ray: &Ray, stats: &mut TraceStats) -> bool {
+    if nodes.is_empty() {
+        return false;
+    }
+    let wr = WideRay::new(ray);
+    let mut stack = Stack::<(u32, u32)>::new();
+    let (mut child, mut count) = (0u32, 0u32);
+    loop {
+        while child & LEAF_BIT == 0 {
+            let n = &nodes[child as usize];
+            stats.node_tests += n.children() as u64;
+            let (_, mut bits) = wr.slab(n, ray.t_max);
+            if bits == 0 {
+                break;
+            }
+            let a = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            while bits != 0 {
+                let i = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                stack.push((n.child[i], n.count[i]));
+            }
+            (child, count) = (n.child[a], n.count[a]);
+        }
+        if child & LEAF_BIT != 0
+            && occluded_leaf(tris, (child & !LEAF_BIT) as usize, count as usize, ray, stats)
+        {
+            return true;
+        }
+        let Some(next) = stack.pop() else {
+            return false;
+        };
+        (child, count) = next;
+    }
+}
