@@ -127,12 +127,15 @@ pub fn intersect(
     }
     let wr = WideRay::new(ray);
     let mut stack = Stack::<Entry>::new();
+    // Counted in a register and stored once: `stats` is behind a reference the leaf test also
+    // writes, so a per-node `+=` would be a load and store per node.
+    let mut node_tests = 0u64;
     // The root node.
     let (mut child, mut count) = (0u32, 0u32);
     'visit: loop {
         while child & LEAF_BIT == 0 {
             let n = &nodes[child as usize];
-            stats.node_tests += n.children() as u64;
+            node_tests += n.children() as u64;
             let (t_near, mut bits) = wr.slab(n, ray.t_max);
             if bits == 0 {
                 break;
@@ -191,6 +194,7 @@ pub fn intersect(
         // nothing is dropped that the box test would keep).
         loop {
             let Some(e) = stack.pop() else {
+                stats.node_tests += node_tests;
                 return best;
             };
             if e.t <= ray.t_max * BOX_INFLATE {
@@ -209,11 +213,12 @@ pub fn occluded(nodes: &[Bvh4Node], tris: &TriangleSoa, ray: &Ray, stats: &mut T
     }
     let wr = WideRay::new(ray);
     let mut stack = Stack::<(u32, u32)>::new();
+    let mut node_tests = 0u64;
     let (mut child, mut count) = (0u32, 0u32);
     loop {
         while child & LEAF_BIT == 0 {
             let n = &nodes[child as usize];
-            stats.node_tests += n.children() as u64;
+            node_tests += n.children() as u64;
             let (_, mut bits) = wr.slab(n, ray.t_max);
             if bits == 0 {
                 break;
@@ -230,9 +235,11 @@ pub fn occluded(nodes: &[Bvh4Node], tris: &TriangleSoa, ray: &Ray, stats: &mut T
         if child & LEAF_BIT != 0
             && occluded_leaf(tris, (child & !LEAF_BIT) as usize, count as usize, ray, stats)
         {
+            stats.node_tests += node_tests;
             return true;
         }
         let Some(next) = stack.pop() else {
+            stats.node_tests += node_tests;
             return false;
         };
         (child, count) = next;
