@@ -93,15 +93,6 @@ impl<T: Copy> Stack<T> {
         // SAFETY: `items[..len]` are initialised: `len` grows only in `push`, after a write.
         Some(unsafe { self.items[self.len].assume_init() })
     }
-
-    /// The `k` most recently pushed entries, oldest first (`k <= len`).
-    #[inline(always)]
-    fn top(&mut self, k: usize) -> &mut [T] {
-        let live = &mut self.items[self.len - k..self.len];
-        // SAFETY: these entries are initialised (below `len`), and `MaybeUninit<T>` has the
-        // layout of `T`.
-        unsafe { &mut *(live as *mut [MaybeUninit<T>] as *mut [T]) }
-    }
 }
 
 /// A stacked subtree: a child reference (`Bvh4Node::child`), its leaf count, its entry
@@ -111,6 +102,14 @@ struct Entry {
     child: u32,
     count: u32,
     t: f32,
+}
+
+/// Orders two entries so the farther comes first.
+#[inline(always)]
+fn far_first(x: &mut Entry, y: &mut Entry) {
+    if x.t < y.t {
+        std::mem::swap(x, y);
+    }
 }
 
 /// Closest hit among the triangles; `ray.t_max` shrinks to the hit distance. Among hits at
@@ -155,30 +154,32 @@ pub fn intersect(
                 (child, count) = (n.child[near], n.count[near]);
                 continue;
             }
-            // Three or four: push them all, sort the pushed entries far to near by insertion,
-            // and take the nearest back off the top.
-            let mut k = 0;
-            for i in [a, b] {
-                stack.push(Entry { child: n.child[i], count: n.count[i], t: t[i] });
-            }
-            while bits != 0 {
-                let i = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                stack.push(Entry { child: n.child[i], count: n.count[i], t: t[i] });
-                k += 1;
-            }
-            let top = stack.top(k + 2);
-            for i in 1..top.len() {
-                let e = top[i];
-                let mut j = i;
-                while j > 0 && top[j - 1].t < e.t {
-                    top[j] = top[j - 1];
-                    j -= 1;
-                }
-                top[j] = e;
-            }
-            let e = stack.pop().expect("three or more entries were pushed");
-            (child, count) = (e.child, e.count);
+            // Three or four: sort far to near with a compare-exchange network (in registers),
+            // push all but the nearest, visit the nearest.
+            let entry = |i: usize| Entry { child: n.child[i], count: n.count[i], t: t[i] };
+            let c = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let (mut e0, mut e1, mut e2) = (entry(a), entry(b), entry(c));
+            let nearest = if bits == 0 {
+                far_first(&mut e0, &mut e1);
+                far_first(&mut e1, &mut e2);
+                far_first(&mut e0, &mut e1);
+                stack.push(e0);
+                stack.push(e1);
+                e2
+            } else {
+                let mut e3 = entry(bits.trailing_zeros() as usize);
+                far_first(&mut e0, &mut e1);
+                far_first(&mut e2, &mut e3);
+                far_first(&mut e0, &mut e2);
+                far_first(&mut e1, &mut e3);
+                far_first(&mut e1, &mut e2);
+                stack.push(e0);
+                stack.push(e1);
+                stack.push(e2);
+                e3
+            };
+            (child, count) = (nearest.child, nearest.count);
         }
         if child & LEAF_BIT != 0 {
             intersect_leaf(
