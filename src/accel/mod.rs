@@ -28,6 +28,10 @@ pub use packet::RayPacket;
 pub use traverse_packet::PacketStack;
 pub use wide_node::Bvh4Node;
 
+/// Largest wide-tree leaf merged from binary subtrees: one 8-wide triangle test (see
+/// `build::collapse`).
+pub const WIDE_LEAF: usize = crate::geometry::triangles::LANES;
+
 /// Sphere hits carry this bit in `Hit::prim`; the low bits are the sphere index.
 pub const SPHERE_BIT: u32 = 1 << 31;
 
@@ -112,7 +116,7 @@ impl Accel {
         // The builder reserves two nodes per triangle; a tree with leaves of several
         // triangles uses far fewer.
         nodes.shrink_to_fit();
-        let mut wide_nodes = build::collapse(&nodes);
+        let mut wide_nodes = build::collapse(&nodes, WIDE_LEAF);
         wide_nodes.shrink_to_fit();
         Accel {
             nodes,

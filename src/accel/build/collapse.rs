@@ -2,34 +2,52 @@
 //! tinybvh's `BVH4_CPU` conversion, described, not copied): each wide node starts with the two
 //! children of a binary node and, while it has fewer than four, opens the interior child with
 //! the largest surface area (the one a random ray is most likely to enter, so opening it saves
-//! the most box-test steps) into its two children. Leaves stay the binary tree's leaves, the
-//! same contiguous triangle ranges, so both trees share the triangle store.
+//! the most box-test steps) into its two children.
+//!
+//! Leaves are contiguous triangle ranges of the shared triangle store: a binary subtree's
+//! triangles are contiguous (leaves are in depth-first order), so a subtree of at most
+//! `max_leaf` triangles becomes one wide leaf. The binary builder's SAH prices every triangle
+//! as one test and makes leaves of one or two triangles, but the single-ray leaf test takes 8
+//! triangles in one SIMD step, so the wide tree merges them up to 8 (fewer nodes, less
+//! memory; measured in PERF.md, "Wide BVH").
 
 use crate::accel::node::BvhNode;
 use crate::accel::wide_node::{Bvh4Node, LEAF_BIT};
 
 /// The wide tree of `nodes` (depth-first, root first; the first interior child of a node
-/// follows it). An empty binary tree gives an empty one; a binary tree that is one leaf gives
-/// one wide node with that leaf as its only child.
-pub fn collapse(nodes: &[BvhNode]) -> Vec<Bvh4Node> {
+/// follows it), with binary subtrees of at most `max_leaf` triangles merged into leaves
+/// (0: keep the binary leaves). An empty binary tree gives an empty one; a tree that is one
+/// leaf gives one wide node with that leaf as its only child.
+pub fn collapse(nodes: &[BvhNode], max_leaf: usize) -> Vec<Bvh4Node> {
     let mut out = Vec::new();
     let Some(root) = nodes.first() else {
         return out;
     };
-    // About one wide node per three binary interior nodes when every node fills up.
+    let c = Collapser { nodes, ranges: subtree_ranges(nodes), max_leaf };
     out.reserve(nodes.len() / 6 + 1);
     out.push(Bvh4Node::EMPTY_NODE);
-    if root.is_leaf() {
-        out[0].set_child(0, root.min, root.max, leaf_ref(root), root.count);
+    if c.is_leaf(0) {
+        out[0].set_child(0, root.min, root.max, c.leaf_ref(0), c.ranges[0].1);
     } else {
-        fill(nodes, 0, 0, &mut out);
+        c.fill(0, 0, &mut out);
     }
     out
 }
 
-fn leaf_ref(n: &BvhNode) -> u32 {
-    assert!(n.index < LEAF_BIT, "triangle index {} does not fit a wide leaf reference", n.index);
-    LEAF_BIT | n.index
+/// (first triangle, triangle count) of every binary subtree. Children follow their parent in
+/// the array, so one backward pass sees both children before the parent.
+fn subtree_ranges(nodes: &[BvhNode]) -> Vec<(u32, u32)> {
+    let mut r = vec![(0, 0); nodes.len()];
+    for i in (0..nodes.len()).rev() {
+        let n = &nodes[i];
+        r[i] = if n.is_leaf() {
+            (n.index, n.count)
+        } else {
+            let (a, b) = (r[i + 1], r[n.index as usize]);
+            (a.0, a.1 + b.1)
+        };
+    }
+    r
 }
 
 fn half_area(n: &BvhNode) -> f32 {
@@ -37,34 +55,54 @@ fn half_area(n: &BvhNode) -> f32 {
     d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
 }
 
-/// Fills wide node `at` with the (up to four) descendants of the binary interior node `i`,
-/// then recurses into the interior ones.
-fn fill(nodes: &[BvhNode], i: usize, at: usize, out: &mut Vec<Bvh4Node>) {
-    let mut kids = [i + 1, nodes[i].index as usize, 0, 0];
-    let mut k = 2;
-    while k < 4 {
-        let open = (0..k)
-            .filter(|&j| !nodes[kids[j]].is_leaf())
-            .max_by(|&a, &b| half_area(&nodes[kids[a]]).total_cmp(&half_area(&nodes[kids[b]])));
-        let Some(j) = open else {
-            break; // every child is a leaf
-        };
-        // Replace the child by its two children in place, keeping depth-first order.
-        let n = kids[j];
-        kids.copy_within(j + 1..k, j + 2);
-        kids[j] = n + 1;
-        kids[j + 1] = nodes[n].index as usize;
-        k += 1;
+struct Collapser<'a> {
+    nodes: &'a [BvhNode],
+    ranges: Vec<(u32, u32)>,
+    max_leaf: usize,
+}
+
+impl Collapser<'_> {
+    /// Whether binary node `i` becomes a wide leaf.
+    fn is_leaf(&self, i: usize) -> bool {
+        self.nodes[i].is_leaf() || self.ranges[i].1 as usize <= self.max_leaf
     }
-    for (slot, &c) in kids[..k].iter().enumerate() {
-        let n = &nodes[c];
-        if n.is_leaf() {
-            out[at].set_child(slot, n.min, n.max, leaf_ref(n), n.count);
-        } else {
-            let child = out.len();
-            out.push(Bvh4Node::EMPTY_NODE);
-            out[at].set_child(slot, n.min, n.max, child as u32, 0);
-            fill(nodes, c, child, out);
+
+    fn leaf_ref(&self, i: usize) -> u32 {
+        let first = self.ranges[i].0;
+        assert!(first < LEAF_BIT, "triangle index {first} does not fit a wide leaf reference");
+        LEAF_BIT | first
+    }
+
+    /// Fills wide node `at` with the (up to four) descendants of the binary interior node
+    /// `i`, then recurses into the interior ones.
+    fn fill(&self, i: usize, at: usize, out: &mut Vec<Bvh4Node>) {
+        let nodes = self.nodes;
+        let mut kids = [i + 1, nodes[i].index as usize, 0, 0];
+        let mut k = 2;
+        while k < 4 {
+            let open = (0..k)
+                .filter(|&j| !self.is_leaf(kids[j]))
+                .max_by(|&a, &b| half_area(&nodes[kids[a]]).total_cmp(&half_area(&nodes[kids[b]])));
+            let Some(j) = open else {
+                break; // every child is a leaf
+            };
+            // Replace the child by its two children in place, keeping depth-first order.
+            let n = kids[j];
+            kids.copy_within(j + 1..k, j + 2);
+            kids[j] = n + 1;
+            kids[j + 1] = nodes[n].index as usize;
+            k += 1;
+        }
+        for (slot, &c) in kids[..k].iter().enumerate() {
+            let n = &nodes[c];
+            if self.is_leaf(c) {
+                out[at].set_child(slot, n.min, n.max, self.leaf_ref(c), self.ranges[c].1);
+            } else {
+                let child = out.len();
+                out.push(Bvh4Node::EMPTY_NODE);
+                out[at].set_child(slot, n.min, n.max, child as u32, 0);
+                self.fill(c, child, out);
+            }
         }
     }
 }
@@ -115,19 +153,28 @@ mod tests {
                 })
                 .collect();
             let bin = build(&boxes, BuildParams::default());
-            let wide = collapse(&bin.nodes);
-            let mut bin_leaves: Vec<(u32, u32)> =
+            let bin_leaves: Vec<(u32, u32)> =
                 bin.nodes.iter().filter(|n| n.is_leaf()).map(|n| (n.index, n.count)).collect();
-            let mut wide_leaves = Vec::new();
-            leaves(&wide, 0, &mut wide_leaves);
-            // Same leaves in the same (depth-first) order.
-            assert_eq!(wide_leaves, bin_leaves, "n = {n}");
-            bin_leaves.sort();
-            let covered: u32 = bin_leaves.iter().map(|l| l.1).sum();
-            assert_eq!(covered as usize, n);
-            let interior = bin.nodes.len() - wide_leaves.len();
-            assert!(wide.len() <= interior.max(1), "n = {n}: {} wide nodes", wide.len());
+            for max_leaf in [0, 4, 8] {
+                let wide = collapse(&bin.nodes, max_leaf);
+                let mut wide_leaves = Vec::new();
+                leaves(&wide, 0, &mut wide_leaves);
+                if max_leaf == 0 {
+                    // Same leaves in the same (depth-first) order.
+                    assert_eq!(wide_leaves, bin_leaves, "n = {n}");
+                }
+                // In depth-first order the leaves tile the triangle store exactly.
+                let mut next = 0;
+                for &(first, count) in &wide_leaves {
+                    assert_eq!(first, next, "n = {n}, max_leaf {max_leaf}");
+                    assert!(count as usize <= max_leaf.max(8), "n = {n}: leaf of {count}");
+                    next += count;
+                }
+                assert_eq!(next as usize, n);
+                let interior = bin.nodes.len() - bin_leaves.len();
+                assert!(wide.len() <= interior.max(1), "n = {n}: {} wide nodes", wide.len());
+            }
         }
-        assert!(collapse(&[]).is_empty());
+        assert!(collapse(&[], 8).is_empty());
     }
 }
