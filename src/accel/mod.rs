@@ -28,9 +28,14 @@ pub use packet::RayPacket;
 pub use traverse_packet::PacketStack;
 pub use wide_node::Bvh4Node;
 
-/// Largest wide-tree leaf merged from binary subtrees: one 8-wide triangle test (see
-/// `build::collapse`).
-pub const WIDE_LEAF: usize = crate::geometry::triangles::LANES;
+/// Largest binary subtree the collapse merges into one wide leaf (`build::collapse`); 0 keeps
+/// the binary leaves. Merging up to 8 (one 8-wide triangle test) was 10-25 % faster on
+/// incoherent rays, but it breaks bit-identity with the binary tree: Möller-Trumbore's
+/// watertightness margin accepts hits a few ulps outside a triangle, hence outside its leaf
+/// box, and the binary tree culls such a hit where the larger merged box does not
+/// (`tests/traversal_agree.rs` caught it; PERF.md, "Wide BVH"). With a margin-free
+/// (watertight) triangle test it would be safe to turn on.
+pub const WIDE_LEAF: usize = 0;
 
 /// Sphere hits carry this bit in `Hit::prim`; the low bits are the sphere index.
 pub const SPHERE_BIT: u32 = 1 << 31;
