@@ -207,7 +207,12 @@ pub fn intersect(
 }
 
 /// Whether any triangle blocks the ray within [t_min, t_max]; stops at the first one found.
-/// Children are visited in slot order: an any-hit ray gains little from sorting.
+///
+/// The farthest entered child is visited first. Occlusion rays start on a surface, and the
+/// boxes around their origin (entered at t_min, so nearest) hold the surface they leave, which
+/// rarely blocks them; what blocks them lies farther along. Measured (PERF.md, "Wide BVH"):
+/// maxplanck shadow 66.8 -> 41.6 node tests per ray and about 1.7x the rays per second
+/// against slot order; nearest-first was worse than slot order (83.5 tests per ray).
 pub fn occluded(nodes: &[Bvh4Node], tris: &TriangleSoa, ray: &Ray, stats: &mut TraceStats) -> bool {
     if nodes.is_empty() {
         return false;
@@ -220,15 +225,19 @@ pub fn occluded(nodes: &[Bvh4Node], tris: &TriangleSoa, ray: &Ray, stats: &mut T
         while child & LEAF_BIT == 0 {
             let n = &nodes[child as usize];
             node_tests += n.children() as u64;
-            let (_, mut bits) = wr.slab(n, ray.t_max);
+            let (t_near, mut bits) = wr.slab(n, ray.t_max);
             if bits == 0 {
                 break;
             }
-            let a = bits.trailing_zeros() as usize;
+            let t = t_near.to_array();
+            let mut a = bits.trailing_zeros() as usize;
             bits &= bits - 1;
             while bits != 0 {
-                let i = bits.trailing_zeros() as usize;
+                let mut i = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
+                if t[i] > t[a] {
+                    std::mem::swap(&mut a, &mut i);
+                }
                 stack.push((n.child[i], n.count[i]));
             }
             (child, count) = (n.child[a], n.count[a]);
