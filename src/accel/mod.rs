@@ -35,7 +35,7 @@ pub use wide_node::Bvh4Node;
 /// box, and the binary tree culls such a hit where the larger merged box does not
 /// (`tests/traversal_agree.rs` caught it; PERF.md, "Wide BVH"). With a margin-free
 /// (watertight) triangle test it would be safe to turn on.
-pub const WIDE_LEAF: usize = 0;
+pub const WIDE_LEAF: usize = 8;
 
 /// Sphere hits carry this bit in `Hit::prim`; the low bits are the sphere index.
 pub const SPHERE_BIT: u32 = 1 << 31;
@@ -87,6 +87,8 @@ impl TraceStats {
 pub struct Accel {
     nodes: Vec<BvhNode>,
     wide_nodes: Vec<Bvh4Node>,
+    /// The binary leaf of every triangle in a merged wide leaf (`build::merged_leaf_map`).
+    leaf_of: Vec<u32>,
     tris: TriangleSoa,
     spheres: Vec<Sphere>,
     bounds: Aabb,
@@ -123,9 +125,11 @@ impl Accel {
         nodes.shrink_to_fit();
         let mut wide_nodes = build::collapse(&nodes, WIDE_LEAF);
         wide_nodes.shrink_to_fit();
+        let leaf_of = build::merged_leaf_map(&nodes, &wide_nodes, tris.len());
         Accel {
             nodes,
             wide_nodes,
+            leaf_of,
             tris,
             spheres: scene.spheres.clone(),
             bounds: scene.bounds(),
@@ -149,6 +153,14 @@ impl Accel {
         &self.tris
     }
 
+    fn wide(&self) -> traverse_wide::WideBvh<'_> {
+        traverse_wide::WideBvh {
+            nodes: &self.wide_nodes,
+            bvh2: &self.nodes,
+            leaf_of: &self.leaf_of,
+        }
+    }
+
     /// The 4-wide tree that single rays traverse.
     pub fn wide_nodes(&self) -> &[Bvh4Node] {
         &self.wide_nodes
@@ -158,6 +170,7 @@ impl Accel {
     pub fn memory_bytes(&self) -> usize {
         self.nodes.capacity() * std::mem::size_of::<BvhNode>()
             + self.wide_nodes.capacity() * std::mem::size_of::<Bvh4Node>()
+            + self.leaf_of.capacity() * 4
             + self.tris.memory_bytes()
     }
 
@@ -165,7 +178,7 @@ impl Accel {
     pub fn intersect(&self, ray: &Ray, stats: &mut TraceStats) -> Option<Hit> {
         stats.rays += 1;
         let mut r = *ray;
-        let best = traverse_wide::intersect(&self.wide_nodes, &self.tris, &mut r, stats);
+        let best = traverse_wide::intersect(self.wide(), &self.tris, &mut r, stats);
         self.spheres_after(r, best, stats)
     }
 
@@ -198,7 +211,7 @@ impl Accel {
     /// Whether anything blocks the ray within [t_min, t_max] (through the 4-wide tree).
     pub fn occluded(&self, ray: &Ray, stats: &mut TraceStats) -> bool {
         stats.rays += 1;
-        traverse_wide::occluded(&self.wide_nodes, &self.tris, ray, stats)
+        traverse_wide::occluded(self.wide(), &self.tris, ray, stats)
             || self.spheres_block(ray, stats)
     }
 

@@ -9,11 +9,12 @@
 
 use std::mem::MaybeUninit;
 
-use wide::f32x4;
+use wide::{f32x4, f32x8};
 
-use super::build::MAX_DEPTH;
+use super::build::{MAX_DEPTH, NO_LEAF};
+use super::node::BvhNode;
 use super::packet::{safe_recip, BOX_INFLATE};
-use super::traverse_single::{intersect_leaf, occluded_leaf};
+use super::traverse_single::{intersect_leaf, occluded_leaf, HitFilter, RayBox};
 use super::wide_node::{Bvh4Node, LEAF_BIT};
 use super::TraceStats;
 use crate::geometry::triangles::TriangleSoa;
@@ -31,6 +32,8 @@ struct WideRay {
     inv_dir: [f32x4; 3],
     neg: [bool; 3],
     t_min: f32x4,
+    /// The same ray for the binary tree's scalar box test (merged leaves' hit check).
+    scalar: RayBox,
 }
 
 impl WideRay {
@@ -42,6 +45,7 @@ impl WideRay {
             inv_dir: inv.map(f32x4::splat),
             neg: inv.map(f32::is_sign_negative),
             t_min: f32x4::splat(ray.t_min),
+            scalar: RayBox::from_recips(ray, inv),
         }
     }
 
@@ -104,6 +108,45 @@ struct Entry {
     t: f32,
 }
 
+/// The wide tree and what its merged leaves need: the binary leaf of every triangle in a
+/// merged leaf (`leaf_of`, `NO_LEAF` elsewhere, empty when nothing was merged) and the binary
+/// nodes.
+#[derive(Clone, Copy)]
+pub struct WideBvh<'a> {
+    pub nodes: &'a [Bvh4Node],
+    pub bvh2: &'a [BvhNode],
+    pub leaf_of: &'a [u32],
+}
+
+/// Keeps the hits the binary tree would find. A merged wide leaf has one box where the binary
+/// tree had several smaller ones, and the binary tree's box test does cull some real hits:
+/// Möller-Trumbore's margin accepts hits a few ulps outside a triangle, hence possibly outside
+/// its leaf box, and a ray lying in a flat box's plane (a zero direction component, made
+/// 1e-18 by `safe_recip`) leaves that box at once. So every hit in a merged leaf is checked
+/// against its binary leaf box with the same scalar test the binary traversal runs (the binary
+/// ancestors inside the merged subtree contain that box, so they would pass too).
+#[inline(always)]
+fn binary_culling<'a>(w: WideBvh<'a>, rb: &'a RayBox) -> impl HitFilter + 'a {
+    move |mut bits: u32, at: usize, _: f32x8, _: f32x8, ray: &Ray| {
+        if w.leaf_of.is_empty() {
+            return bits;
+        }
+        let mut check = bits;
+        while check != 0 {
+            let lane = check.trailing_zeros() as usize;
+            check &= check - 1;
+            let leaf = w.leaf_of[at + lane];
+            if leaf == NO_LEAF {
+                continue;
+            }
+            if rb.slab(&w.bvh2[leaf as usize], ray.t_max) == f32::INFINITY {
+                bits &= !(1 << lane);
+            }
+        }
+        bits
+    }
+}
+
 /// Orders two entries so the farther comes first.
 #[inline(always)]
 fn far_first(x: &mut Entry, y: &mut Entry) {
@@ -115,11 +158,12 @@ fn far_first(x: &mut Entry, y: &mut Entry) {
 /// Closest hit among the triangles; `ray.t_max` shrinks to the hit distance. Among hits at
 /// equal distance the smallest prim wins.
 pub fn intersect(
-    nodes: &[Bvh4Node],
+    w: WideBvh<'_>,
     tris: &TriangleSoa,
     ray: &mut Ray,
     stats: &mut TraceStats,
 ) -> Option<Hit> {
+    let nodes = w.nodes;
     let mut best = None;
     if nodes.is_empty() {
         return None;
@@ -189,6 +233,7 @@ pub fn intersect(
                 ray,
                 &mut best,
                 stats,
+                binary_culling(w, &wr.scalar),
             );
         }
         // Pop the next subtree that can still hold a nearer hit (the box test's tolerance, so
@@ -213,7 +258,8 @@ pub fn intersect(
 /// rarely blocks them; what blocks them lies farther along. Measured (PERF.md, "Wide BVH"):
 /// maxplanck shadow 66.8 -> 41.6 node tests per ray and about 1.7x the rays per second
 /// against slot order; nearest-first was worse than slot order (83.5 tests per ray).
-pub fn occluded(nodes: &[Bvh4Node], tris: &TriangleSoa, ray: &Ray, stats: &mut TraceStats) -> bool {
+pub fn occluded(w: WideBvh<'_>, tris: &TriangleSoa, ray: &Ray, stats: &mut TraceStats) -> bool {
+    let nodes = w.nodes;
     if nodes.is_empty() {
         return false;
     }
@@ -243,7 +289,14 @@ pub fn occluded(nodes: &[Bvh4Node], tris: &TriangleSoa, ray: &Ray, stats: &mut T
             (child, count) = (n.child[a], n.count[a]);
         }
         if child & LEAF_BIT != 0
-            && occluded_leaf(tris, (child & !LEAF_BIT) as usize, count as usize, ray, stats)
+            && occluded_leaf(
+                tris,
+                (child & !LEAF_BIT) as usize,
+                count as usize,
+                ray,
+                stats,
+                binary_culling(w, &wr.scalar),
+            )
         {
             stats.node_tests += node_tests;
             return true;

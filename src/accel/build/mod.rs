@@ -7,7 +7,7 @@
 mod binned_sah;
 mod collapse;
 
-pub use collapse::collapse;
+pub use collapse::{collapse, merged_leaf_map, NO_LEAF};
 
 use crate::math::{Aabb, Vec3};
 
