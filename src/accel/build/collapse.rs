@@ -4,14 +4,13 @@
 //! the largest surface area (the one a random ray is most likely to enter, so opening it saves
 //! the most box-test steps) into its two children.
 //!
-//! Leaves are contiguous triangle ranges of the shared triangle store. By default they are
-//! the binary tree's leaves. Because a binary subtree's triangles are contiguous (leaves are
-//! in depth-first order), a subtree of at most `max_leaf` triangles can also become one wide
-//! leaf: the binary SAH prices every triangle as one test and makes leaves of one or two
-//! triangles, while the single-ray leaf test takes 8 at once. `Accel` leaves this off
-//! (`accel::WIDE_LEAF`): a merged leaf's box is larger than its parts', which changes which
-//! of the triangle test's margin hits are culled, so hits would no longer be bit-identical to
-//! the binary tree's.
+//! Leaves are contiguous triangle ranges of the shared triangle store. Because a binary
+//! subtree's triangles are contiguous (leaves are in depth-first order), a subtree of at most
+//! `max_leaf` triangles can become one wide leaf: the binary SAH prices every triangle as one
+//! test and makes leaves of one or two triangles, while the single-ray leaf test takes 8 at
+//! once. A merged leaf's box is larger than its parts', and the binary tree's boxes cull some
+//! real hits (the triangle test's margin hits, rays in a flat box's plane), so traversal
+//! checks hits in merged leaves against their binary leaf boxes (`merged_leaf_map`).
 
 use crate::accel::node::BvhNode;
 use crate::accel::wide_node::{Bvh4Node, LEAF_BIT};
