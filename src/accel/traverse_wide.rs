@@ -5,7 +5,11 @@
 //! Hits are bit-identical to `traverse_single`'s: the leaves run the same triangle test and
 //! order hits by (t, prim), and each lane of the box test computes exactly what the binary
 //! test computes for that box (the same subtractions and products, no fused multiply-add, the
-//! same `BOX_INFLATE` tolerance), so a box is culled here iff it is culled there.
+//! same `BOX_INFLATE` tolerance), so a box both trees hold is culled here iff it is culled
+//! there. Hits in leaves merged from several binary leaves are checked against their binary
+//! leaf box (`binary_culling`), with the current t_max where the binary walk used the t_max it
+//! had on reaching that leaf: they could differ only for a hit in front of its own leaf box
+//! found after a nearer box was entered, which no test ray has met.
 
 use std::mem::MaybeUninit;
 
