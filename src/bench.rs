@@ -191,17 +191,26 @@ pub fn read_rays(path: &Path) -> crate::Result<Vec<Ray>> {
 /// How rays are traversed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Traversal {
+    /// One ray at a time through the 4-wide tree (what `Accel::intersect` does).
     Single,
+    /// One ray at a time through the binary tree (`Accel::intersect_bvh2`), to compare the
+    /// trees; not in the default list.
+    SingleBvh2,
     Packet4,
     Packet8,
 }
 
 impl Traversal {
+    /// The traversals a benchmark runs by default.
     pub const ALL: [Traversal; 3] = [Traversal::Single, Traversal::Packet4, Traversal::Packet8];
+    /// Every traversal `--traversal` accepts.
+    pub const NAMED: [Traversal; 4] =
+        [Traversal::Single, Traversal::SingleBvh2, Traversal::Packet4, Traversal::Packet8];
 
     pub fn name(self) -> &'static str {
         match self {
             Traversal::Single => "single",
+            Traversal::SingleBvh2 => "single-bvh2",
             Traversal::Packet4 => "packet4",
             Traversal::Packet8 => "packet8",
         }
@@ -215,16 +224,16 @@ impl Traversal {
     /// Packet width (1 for single rays).
     pub fn width(self) -> usize {
         match self {
-            Traversal::Single => 1,
+            Traversal::Single | Traversal::SingleBvh2 => 1,
             Traversal::Packet4 => 4,
             Traversal::Packet8 => 8,
         }
     }
 
     pub fn parse(s: &str) -> crate::Result<Traversal> {
-        Traversal::ALL.into_iter().find(|t| t.name() == s).ok_or_else(|| {
+        Traversal::NAMED.into_iter().find(|t| t.name() == s).ok_or_else(|| {
             crate::Error::new(format!(
-                "unknown traversal '{s}' (expected single, packet4 or packet8)"
+                "unknown traversal '{s}' (expected single, single-bvh2, packet4 or packet8)"
             ))
         })
     }
@@ -291,6 +300,11 @@ fn trace_chunk(
                     *b = accel.occluded(r, stats);
                 }
             }
+            Traversal::SingleBvh2 => {
+                for (b, r) in blocked.iter_mut().zip(rays) {
+                    *b = accel.occluded_bvh2(r, stats);
+                }
+            }
             Traversal::Packet4 => {
                 accel.occluded_packets_with::<4>(rays, fallback, &mut blocked, stats)
             }
@@ -305,6 +319,11 @@ fn trace_chunk(
             Traversal::Single => {
                 for (h, r) in hits.iter_mut().zip(rays) {
                     *h = accel.intersect(r, stats);
+                }
+            }
+            Traversal::SingleBvh2 => {
+                for (h, r) in hits.iter_mut().zip(rays) {
+                    *h = accel.intersect_bvh2(r, stats);
                 }
             }
             Traversal::Packet4 => {

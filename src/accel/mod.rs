@@ -1,16 +1,18 @@
 //! Acceleration structure: the public surface every stage uses.
 //!
 //! Triangles live in a binned-SAH BVH (flat, depth-first, 32-byte nodes) over SoA triangle
-//! columns in leaf order; packets traverse it as built, single rays a 4-wide collapse of it
-//! (`bvh4.rs`, same leaves). The course scenes hold at most a handful of analytic spheres, so
+//! columns in leaf order. Packets traverse that binary tree; single rays traverse a 4-wide
+//! tree collapsed from it (128-byte nodes, one SIMD test for four boxes) whose leaves are the
+//! same triangle ranges, so the triangle store is shared. The course scenes hold at most a handful of analytic spheres, so
 //! they are a short list tested after the triangles rather than BVH primitives.
 
 pub mod build;
-pub mod bvh4;
 pub mod node;
 pub mod packet;
 pub mod traverse_packet;
 pub mod traverse_single;
+pub mod traverse_wide;
+pub mod wide_node;
 
 use std::time::{Duration, Instant};
 
@@ -24,6 +26,15 @@ pub use build::BuildParams;
 pub use node::BvhNode;
 pub use packet::RayPacket;
 pub use traverse_packet::PacketStack;
+pub use wide_node::Bvh4Node;
+
+/// Largest binary subtree the collapse merges into one wide leaf (`build::collapse`; 0 keeps
+/// the binary leaves). The binary SAH makes leaves of 1.7 triangles on average; the wide
+/// leaf test takes 8 at once. Hits in merged leaves are checked against their binary leaf
+/// boxes so that they stay bit-identical to the binary tree's (`traverse_wide`). Measured
+/// (PERF.md, "Wide BVH"): maxplanck diffuse and shadow faster, CBbunny primary and shadow
+/// slower, memory down by a fifth.
+pub const WIDE_LEAF: usize = 8;
 
 /// Sphere hits carry this bit in `Hit::prim`; the low bits are the sphere index.
 pub const SPHERE_BIT: u32 = 1 << 31;
@@ -41,10 +52,12 @@ pub enum AccelKind {
 /// Exact work counters, deterministic for a given traversal and ray order.
 ///
 /// - `rays`: queries (a packet counts its active lanes).
-/// - `node_tests`: ray-box tests, one per ray per box. Single rays (4-wide tree) count the
-///   2-4 child boxes of every node they visit (an empty tree counts 1); the binary tree
-///   (packets, and lanes they hand to single-ray fallback) counts the root and both children
-///   of every interior node visited. A packet-box test counts one test
+/// - `node_tests`: ray-box tests, one per ray per box. Single-ray traversal of the 4-wide tree
+///   (`intersect`, `occluded`) counts, at every wide node it visits, one test per child box
+///   that the node holds (2 to 4; the root of a one-leaf tree holds 1), whether or not the
+///   lanes of unused slots are computed; the scene box is not tested separately. Single-ray
+///   traversal of the binary tree (`intersect_bvh2`, `occluded_bvh2`, packet fallback) tests
+///   the root and then both children of every interior node it visits. A packet-box test counts one test
 ///   per lane active at that node (lanes that entered its box and whose best hit is not yet
 ///   nearer), not W: inactive and finished lanes cost nothing in the count. A lane handed to
 ///   single-ray fallback counts as single-ray traversal from then on.
@@ -72,8 +85,9 @@ impl TraceStats {
 
 pub struct Accel {
     nodes: Vec<BvhNode>,
-    /// The same tree collapsed to 4-wide nodes, for single rays (packets use `nodes`).
-    nodes4: Vec<bvh4::Bvh4Node>,
+    wide_nodes: Vec<Bvh4Node>,
+    /// The binary leaf of every triangle in a merged wide leaf (`build::merged_leaf_map`).
+    leaf_of: Vec<u32>,
     tris: TriangleSoa,
     spheres: Vec<Sphere>,
     bounds: Aabb,
@@ -104,10 +118,17 @@ impl Accel {
             }
         };
         let tris = TriangleSoa::from_order(&corners, &order);
-        let nodes = if tris.is_empty() { Vec::new() } else { nodes };
+        let mut nodes = if tris.is_empty() { Vec::new() } else { nodes };
+        // The builder reserves two nodes per triangle; a tree with leaves of several
+        // triangles uses far fewer.
+        nodes.shrink_to_fit();
+        let mut wide_nodes = build::collapse(&nodes, WIDE_LEAF);
+        wide_nodes.shrink_to_fit();
+        let leaf_of = build::merged_leaf_map(&nodes, &wide_nodes, tris.len());
         Accel {
-            nodes4: bvh4::collapse(&nodes),
             nodes,
+            wide_nodes,
+            leaf_of,
             tris,
             spheres: scene.spheres.clone(),
             bounds: scene.bounds(),
@@ -131,18 +152,51 @@ impl Accel {
         &self.tris
     }
 
+    fn wide(&self) -> traverse_wide::WideBvh<'_> {
+        traverse_wide::WideBvh {
+            nodes: &self.wide_nodes,
+            bvh2: &self.nodes,
+            leaf_of: &self.leaf_of,
+        }
+    }
+
+    /// The 4-wide tree that single rays traverse.
+    pub fn wide_nodes(&self) -> &[Bvh4Node] {
+        &self.wide_nodes
+    }
+
     /// Bytes held by the structure: both node arrays plus triangle columns.
     pub fn memory_bytes(&self) -> usize {
         self.nodes.capacity() * std::mem::size_of::<BvhNode>()
-            + self.nodes4.capacity() * std::mem::size_of::<bvh4::Bvh4Node>()
+            + self.wide_nodes.capacity() * std::mem::size_of::<Bvh4Node>()
+            + self.leaf_of.capacity() * 4
             + self.tris.memory_bytes()
     }
 
-    /// The closest hit along the ray within [t_min, t_max].
+    /// The closest hit along the ray within [t_min, t_max] (through the 4-wide tree).
     pub fn intersect(&self, ray: &Ray, stats: &mut TraceStats) -> Option<Hit> {
         stats.rays += 1;
         let mut r = *ray;
-        let mut best = bvh4::intersect(&self.nodes4, &self.tris, &mut r, stats);
+        let best = traverse_wide::intersect(self.wide(), &self.tris, &mut r, stats);
+        self.spheres_after(r, best, stats)
+    }
+
+    /// `intersect` through the binary tree, as packets' single-ray fallback traverses it (for
+    /// tests and for measuring the two trees against each other).
+    pub fn intersect_bvh2(&self, ray: &Ray, stats: &mut TraceStats) -> Option<Hit> {
+        stats.rays += 1;
+        let mut r = *ray;
+        let best = traverse_single::intersect(&self.nodes, &self.tris, &mut r, stats);
+        self.spheres_after(r, best, stats)
+    }
+
+    /// The spheres after the triangles: `r.t_max` is the triangle hit's distance, if any.
+    fn spheres_after(
+        &self,
+        mut r: Ray,
+        mut best: Option<Hit>,
+        stats: &mut TraceStats,
+    ) -> Option<Hit> {
         for (i, s) in self.spheres.iter().enumerate() {
             stats.sphere_tests += 1;
             if let Some(t) = intersect_sphere(&r, s) {
@@ -153,13 +207,21 @@ impl Accel {
         best
     }
 
-    /// Whether anything blocks the ray within [t_min, t_max].
+    /// Whether anything blocks the ray within [t_min, t_max] (through the 4-wide tree).
     pub fn occluded(&self, ray: &Ray, stats: &mut TraceStats) -> bool {
         stats.rays += 1;
-        // Single rays use the 4-wide tree, faster than the binary one (PERF.md).
-        if bvh4::occluded(&self.nodes4, &self.tris, ray, stats) {
-            return true;
-        }
+        traverse_wide::occluded(self.wide(), &self.tris, ray, stats)
+            || self.spheres_block(ray, stats)
+    }
+
+    /// `occluded` through the binary tree.
+    pub fn occluded_bvh2(&self, ray: &Ray, stats: &mut TraceStats) -> bool {
+        stats.rays += 1;
+        traverse_single::occluded(&self.nodes, &self.tris, ray, stats)
+            || self.spheres_block(ray, stats)
+    }
+
+    fn spheres_block(&self, ray: &Ray, stats: &mut TraceStats) -> bool {
         self.spheres.iter().any(|s| {
             stats.sphere_tests += 1;
             intersect_sphere(ray, s).is_some()

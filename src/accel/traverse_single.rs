@@ -45,6 +45,12 @@ impl RayBox {
         RayBox { origin: ray.origin, inv_dir, t_min: ray.t_min }
     }
 
+    /// From reciprocals the caller already took with `safe_recip` (equal to `new`).
+    #[inline(always)]
+    pub fn from_recips(ray: &Ray, inv_dir: [f32; 3]) -> RayBox {
+        RayBox { origin: ray.origin, inv_dir: Vec3::from(inv_dir), t_min: ray.t_min }
+    }
+
     /// Entry distance into the node's box, or infinity if the ray misses it within
     /// [t_min, t_max] (exit enlarged by `BOX_INFLATE`). The same operations in the same order
     /// as a lane of `traverse_packet::slab`.
@@ -84,28 +90,30 @@ fn load3(cols: &[Vec<f32>; 3], at: usize) -> V3<f32x8> {
     V3 { x: load8(&cols[0], at), y: load8(&cols[1], at), z: load8(&cols[2], at) }
 }
 
-/// Tests the leaf's triangles 8 at a time; shrinks `ray.t_max` and records the closest hit.
-#[inline]
-fn intersect_leaf(
-    tris: &TriangleSoa,
-    n: &BvhNode,
-    ray: &mut Ray,
-    best: &mut Option<Hit>,
-    stats: &mut TraceStats,
-) {
-    intersect_leaf_range(tris, n.index as usize, n.count as usize, ray, best, stats)
+/// Which hit lanes of a group of 8 triangles to keep: `(hit bits, first triangle of the
+/// group, u, v, ray) -> kept bits`. The binary tree keeps them all; the wide tree drops margin
+/// hits that the binary tree's leaf boxes would have culled (`traverse_wide`).
+pub(super) trait HitFilter: Fn(u32, usize, f32x8, f32x8, &Ray) -> u32 {}
+impl<F: Fn(u32, usize, f32x8, f32x8, &Ray) -> u32> HitFilter for F {}
+
+/// Keeps every hit.
+#[inline(always)]
+pub(super) fn keep_all(bits: u32, _: usize, _: f32x8, _: f32x8, _: &Ray) -> u32 {
+    bits
 }
 
-/// The triangles `first .. first + count` against the ray, 8 at a time; shrinks `ray.t_max`
-/// and records the closest hit.
+/// Tests the leaf's triangles `first .. first + count` 8 at a time; shrinks `ray.t_max` and
+/// records the closest hit among those `keep` keeps. Shared with the wide traversal, so both
+/// compute the same hits.
 #[inline]
-pub fn intersect_leaf_range(
+pub(super) fn intersect_leaf(
     tris: &TriangleSoa,
     first: usize,
     count: usize,
     ray: &mut Ray,
     best: &mut Option<Hit>,
     stats: &mut TraceStats,
+    keep: impl HitFilter,
 ) {
     let (o, d) = (splat3(ray.origin), splat3(ray.dir));
     stats.triangle_tests += count as u64;
@@ -121,7 +129,11 @@ pub fn intersect_leaf_range(
             f32x8::splat(ray.t_max),
             valid,
         );
-        let bits = mask.to_bitmask();
+        let mut bits = mask.to_bitmask();
+        if bits == 0 {
+            continue;
+        }
+        bits = keep(bits, at, u, v, ray);
         if bits == 0 {
             continue;
         }
@@ -148,27 +160,22 @@ pub fn intersect_leaf_range(
     }
 }
 
-/// Whether any of the leaf's triangles blocks the ray.
+/// Whether any of the leaf's triangles `first .. first + count` blocks the ray.
 #[inline]
-fn occluded_leaf(tris: &TriangleSoa, n: &BvhNode, ray: &Ray, stats: &mut TraceStats) -> bool {
-    occluded_leaf_range(tris, n.index as usize, n.count as usize, ray, stats)
-}
-
-/// Whether any of the triangles `first .. first + count` blocks the ray.
-#[inline]
-pub fn occluded_leaf_range(
+pub(super) fn occluded_leaf(
     tris: &TriangleSoa,
     first: usize,
     count: usize,
     ray: &Ray,
     stats: &mut TraceStats,
+    keep: impl HitFilter,
 ) -> bool {
     let (o, d) = (splat3(ray.origin), splat3(ray.dir));
     let (t_min, t_max) = (f32x8::splat(ray.t_min), f32x8::splat(ray.t_max));
     for at in (first..first + count).step_by(LANES) {
         stats.triangle_tests += (first + count - at).min(LANES) as u64;
         let valid = first_lanes(first + count - at);
-        let (mask, ..) = intersect_simd(
+        let (mask, _, u, v) = intersect_simd(
             o,
             d,
             load3(&tris.v0, at),
@@ -178,7 +185,8 @@ pub fn occluded_leaf_range(
             t_max,
             valid,
         );
-        if mask.any() {
+        let bits = mask.to_bitmask();
+        if bits != 0 && keep(bits, at, u, v, ray) != 0 {
             return true;
         }
     }
@@ -219,7 +227,7 @@ pub fn intersect_subtree(
     loop {
         let n = &nodes[node];
         if n.is_leaf() {
-            intersect_leaf(tris, n, ray, best, stats);
+            intersect_leaf(tris, n.index as usize, n.count as usize, ray, best, stats, keep_all);
         } else {
             let (a, b) = (node + 1, n.index as usize);
             let (ta, tb) = (rb.slab(&nodes[a], ray.t_max), rb.slab(&nodes[b], ray.t_max));
@@ -274,7 +282,7 @@ pub fn occluded_subtree(
     loop {
         let n = &nodes[node];
         if n.is_leaf() {
-            if occluded_leaf(tris, n, ray, stats) {
+            if occluded_leaf(tris, n.index as usize, n.count as usize, ray, stats, keep_all) {
                 return true;
             }
         } else {

@@ -17,7 +17,7 @@ Options:
   --ray-set primary|diffuse|shadow   one set (default: all three); shadow rays are any-hit
   --rays-in FILE        trace the rays of FILE (32-byte records) instead; needs --ray-set
   --rays-out PREFIX     also write PREFIX.{primary,diffuse,shadow}.rays
-  --traversal single|packet4|packet8   (default: every one this build has)
+  --traversal single|single-bvh2|packet4|packet8   (default: single, packet4, packet8)
   --threads N           worker threads (default 1)
   --packet-fallback N   packets hand subtrees entered by <= N lanes to single rays
                         (default: the tuned value; for measuring it)

@@ -1,4 +1,5 @@
-//! BVH construction: a binned SAH build straight into the flat depth-first node array.
+//! BVH construction: a binned SAH build straight into the flat depth-first node array, and
+//! its collapse into the 4-wide tree that single rays traverse (`collapse`).
 //!
 //! Primitives are known only by their bounding boxes; the builder returns the node array and
 //! the primitive order that the leaves index. It works on an array of 32-byte primitive
@@ -8,6 +9,9 @@
 //! does not depend on the thread count.
 
 mod binned_sah;
+mod collapse;
+
+pub use collapse::{collapse, merged_leaf_map, NO_LEAF};
 
 use glam::Vec4;
 

@@ -1,0 +1,215 @@
+//! Binary BVH -> 4-wide BVH, by pulling grandchildren up (as in Embree's BVH4 builders and
+//! tinybvh's `BVH4_CPU` conversion, described, not copied): each wide node starts with the two
+//! children of a binary node and, while it has fewer than four, opens the interior child with
+//! the largest surface area (the one a random ray is most likely to enter, so opening it saves
+//! the most box-test steps) into its two children.
+//!
+//! Leaves are contiguous triangle ranges of the shared triangle store. Because a binary
+//! subtree's triangles are contiguous (leaves are in depth-first order), a subtree of at most
+//! `max_leaf` triangles can become one wide leaf: the binary SAH prices every triangle as one
+//! test and makes leaves of one or two triangles, while the single-ray leaf test takes 8 at
+//! once. A merged leaf's box is larger than its parts', and the binary tree's boxes cull some
+//! real hits (the triangle test's margin hits, rays in a flat box's plane), so traversal
+//! checks hits in merged leaves against their binary leaf boxes (`merged_leaf_map`).
+
+use crate::accel::node::BvhNode;
+use crate::accel::wide_node::{Bvh4Node, LEAF_BIT};
+
+/// The wide tree of `nodes` (depth-first, root first; the first interior child of a node
+/// follows it), with binary subtrees of at most `max_leaf` triangles merged into leaves
+/// (0: keep the binary leaves). An empty binary tree gives an empty one; a tree that is one
+/// leaf gives one wide node with that leaf as its only child.
+pub fn collapse(nodes: &[BvhNode], max_leaf: usize) -> Vec<Bvh4Node> {
+    let mut out = Vec::new();
+    let Some(root) = nodes.first() else {
+        return out;
+    };
+    let c = Collapser { nodes, ranges: subtree_ranges(nodes), max_leaf };
+    out.reserve(nodes.len() / 6 + 1);
+    out.push(Bvh4Node::EMPTY_NODE);
+    if c.is_leaf(0) {
+        out[0].set_child(0, root.min, root.max, c.leaf_ref(0), c.ranges[0].1);
+    } else {
+        c.fill(0, 0, &mut out);
+    }
+    out
+}
+
+/// Marks, for every stored triangle (`n` of them), the binary leaf that holds it if the wide
+/// tree merged that leaf into a larger one, else `NO_LEAF`; empty if nothing was merged.
+/// Traversal checks hits in merged leaves against their binary leaf boxes
+/// (`traverse_wide::binary_culling`).
+pub fn merged_leaf_map(nodes: &[BvhNode], wide: &[Bvh4Node], n: usize) -> Vec<u32> {
+    let mut leaf_of = vec![NO_LEAF; n];
+    for (i, b) in nodes.iter().enumerate().filter(|(_, b)| b.is_leaf()) {
+        leaf_of[b.index as usize..(b.index + b.count) as usize].fill(i as u32);
+    }
+    let mut merged = false;
+    for w in wide {
+        for (&c, &count) in w.child.iter().zip(&w.count) {
+            if c & LEAF_BIT == 0 || count == 0 {
+                continue;
+            }
+            let first = (c & !LEAF_BIT) as usize;
+            let b = &nodes[leaf_of[first] as usize];
+            if b.index as usize == first && b.count == count {
+                // A binary leaf as it was: its box is the one the binary tree tests.
+                leaf_of[first..first + count as usize].fill(NO_LEAF);
+            } else {
+                merged = true;
+            }
+        }
+    }
+    if !merged {
+        leaf_of.clear();
+    }
+    leaf_of
+}
+
+/// `merged_leaf_map`'s entry for a triangle that needs no check.
+pub const NO_LEAF: u32 = u32::MAX;
+
+/// (first triangle, triangle count) of every binary subtree. Children follow their parent in
+/// the array, so one backward pass sees both children before the parent.
+fn subtree_ranges(nodes: &[BvhNode]) -> Vec<(u32, u32)> {
+    let mut r = vec![(0, 0); nodes.len()];
+    for i in (0..nodes.len()).rev() {
+        let n = &nodes[i];
+        r[i] = if n.is_leaf() {
+            (n.index, n.count)
+        } else {
+            let (a, b) = (r[i + 1], r[n.index as usize]);
+            (a.0, a.1 + b.1)
+        };
+    }
+    r
+}
+
+fn half_area(n: &BvhNode) -> f32 {
+    let d = [n.max[0] - n.min[0], n.max[1] - n.min[1], n.max[2] - n.min[2]];
+    d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
+}
+
+struct Collapser<'a> {
+    nodes: &'a [BvhNode],
+    ranges: Vec<(u32, u32)>,
+    max_leaf: usize,
+}
+
+impl Collapser<'_> {
+    /// Whether binary node `i` becomes a wide leaf.
+    fn is_leaf(&self, i: usize) -> bool {
+        self.nodes[i].is_leaf() || self.ranges[i].1 as usize <= self.max_leaf
+    }
+
+    fn leaf_ref(&self, i: usize) -> u32 {
+        let first = self.ranges[i].0;
+        assert!(first < LEAF_BIT, "triangle index {first} does not fit a wide leaf reference");
+        LEAF_BIT | first
+    }
+
+    /// Fills wide node `at` with the (up to four) descendants of the binary interior node
+    /// `i`, then recurses into the interior ones.
+    fn fill(&self, i: usize, at: usize, out: &mut Vec<Bvh4Node>) {
+        let nodes = self.nodes;
+        let mut kids = [i + 1, nodes[i].index as usize, 0, 0];
+        let mut k = 2;
+        while k < 4 {
+            let open = (0..k)
+                .filter(|&j| !self.is_leaf(kids[j]))
+                .max_by(|&a, &b| half_area(&nodes[kids[a]]).total_cmp(&half_area(&nodes[kids[b]])));
+            let Some(j) = open else {
+                break; // every child is a leaf
+            };
+            // Replace the child by its two children in place, keeping depth-first order.
+            let n = kids[j];
+            kids.copy_within(j + 1..k, j + 2);
+            kids[j] = n + 1;
+            kids[j + 1] = nodes[n].index as usize;
+            k += 1;
+        }
+        for (slot, &c) in kids[..k].iter().enumerate() {
+            let n = &nodes[c];
+            if self.is_leaf(c) {
+                out[at].set_child(slot, n.min, n.max, self.leaf_ref(c), self.ranges[c].1);
+            } else {
+                let child = out.len();
+                out.push(Bvh4Node::EMPTY_NODE);
+                out[at].set_child(slot, n.min, n.max, child as u32, 0);
+                self.fill(c, child, out);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::build::{build, BuildParams};
+    use crate::accel::wide_node::EMPTY;
+    use crate::math::{Aabb, Vec3};
+    use crate::sampler::Pcg32;
+
+    /// Leaves of the wide tree: (first, count, box) in visiting order, with every interior
+    /// child's box checked to be the union its children's boxes fit in.
+    fn leaves(w: &[Bvh4Node], at: usize, out: &mut Vec<(u32, u32)>) {
+        let n = &w[at];
+        let k = n.children();
+        assert!(k >= 2 || (at == 0 && k == 1), "node {at} has {k} children");
+        for i in 0..4 {
+            if n.child[i] == EMPTY {
+                assert!(i >= k, "children are packed from slot 0");
+                continue;
+            }
+            if n.child[i] & LEAF_BIT != 0 {
+                out.push((n.child[i] & !LEAF_BIT, n.count[i]));
+            } else {
+                let c = n.child[i] as usize;
+                assert!(c > at, "depth-first order");
+                for j in 0..w[c].children() {
+                    for axis in 0..3 {
+                        assert!(w[c].bounds[2 * axis][j] >= n.bounds[2 * axis][i]);
+                        assert!(w[c].bounds[2 * axis + 1][j] <= n.bounds[2 * axis + 1][i]);
+                    }
+                }
+                leaves(w, c, out);
+            }
+        }
+    }
+
+    #[test]
+    fn collapse_keeps_every_leaf_once_and_nests_boxes() {
+        let mut rng = Pcg32::new(3, 4);
+        for n in [1usize, 2, 7, 9, 100, 3000] {
+            let boxes: Vec<Aabb> = (0..n)
+                .map(|_| {
+                    let c = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 10.0;
+                    Aabb::from_points(&[c, c + Vec3::splat(0.1 * rng.next_f32())])
+                })
+                .collect();
+            let bin = build(&boxes, BuildParams::default());
+            let bin_leaves: Vec<(u32, u32)> =
+                bin.nodes.iter().filter(|n| n.is_leaf()).map(|n| (n.index, n.count)).collect();
+            for max_leaf in [0, 4, 8] {
+                let wide = collapse(&bin.nodes, max_leaf);
+                let mut wide_leaves = Vec::new();
+                leaves(&wide, 0, &mut wide_leaves);
+                if max_leaf == 0 {
+                    // Same leaves in the same (depth-first) order.
+                    assert_eq!(wide_leaves, bin_leaves, "n = {n}");
+                }
+                // In depth-first order the leaves tile the triangle store exactly.
+                let mut next = 0;
+                for &(first, count) in &wide_leaves {
+                    assert_eq!(first, next, "n = {n}, max_leaf {max_leaf}");
+                    assert!(count as usize <= max_leaf.max(8), "n = {n}: leaf of {count}");
+                    next += count;
+                }
+                assert_eq!(next as usize, n);
+                let interior = bin.nodes.len() - bin_leaves.len();
+                assert!(wide.len() <= interior.max(1), "n = {n}: {} wide nodes", wide.len());
+            }
+        }
+        assert!(collapse(&[], 8).is_empty());
+    }
+}
