@@ -71,10 +71,20 @@ fn mean_and_error(
     spp: u32,
     depth: u32,
 ) -> (f64, f64) {
+    mean_and_error_at(scene, integrator, spp, depth, (24, 18))
+}
+
+fn mean_and_error_at(
+    scene: &Scene,
+    integrator: pathtracer::integrator::Integrator,
+    spp: u32,
+    depth: u32,
+    (w, h): (u32, u32),
+) -> (f64, f64) {
     let run = |seed| {
         render_pixels(scene, integrator, |c| {
             (c.width, c.height, c.spp, c.light_samples, c.max_depth, c.seed) =
-                (24, 18, spp, 1, depth, seed)
+                (w, h, spp, 1, depth, seed)
         })
     };
     let (a, b) = (run(1), run(2));
@@ -205,4 +215,17 @@ fn tilted_tiny_light_gives_l_a_cos_cos_over_d_squared_for_light_sampling_and_mis
             "{name}: {mean} +- {sem} vs L A cos cos / d^2 = {want}"
         );
     }
+}
+
+/// The committed asset: its emissive quad and its area light are one rectangle, so uniform
+/// hemisphere sampling (which sees the quad) and light sampling (which samples the light)
+/// converge to the same direct lighting. 120 x 90 pixels of the course framing hold the back
+/// wall, both walls' inner parts and the tops of the spheres.
+#[test]
+fn hemisphere_and_light_sampling_agree_on_the_assets_cornell_box() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/cornell.dae");
+    let scene = pathtracer::scene::collada::load(std::path::Path::new(path)).unwrap();
+    let light = mean_and_error_at(&scene, LIGHT, 16, 1, (120, 90));
+    let hemi = mean_and_error_at(&scene, HEMISPHERE, 256, 1, (120, 90));
+    assert_agree("assets/cornell.dae: light vs hemisphere", light, hemi);
 }
