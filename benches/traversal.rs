@@ -4,25 +4,14 @@
 //! `cargo bench --bench traversal`.
 
 use std::hint::black_box;
-use std::path::PathBuf;
 
+mod common;
+
+use common::scene_path;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use pathtracer::accel::{Accel, AccelKind, TraceStats};
 use pathtracer::bench::{generate_ray_sets, triangles_only, RaySet, Traversal};
 use pathtracer::math::Ray;
-
-fn scene_path(rel: &str) -> Option<PathBuf> {
-    let dir = std::env::var_os("PT_SCENES").map(PathBuf::from).unwrap_or_else(|| {
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes/cs184")
-    });
-    let p = dir.join(rel);
-    if p.is_file() {
-        Some(p)
-    } else {
-        eprintln!("skipped: scenes not found ({})", p.display());
-        None
-    }
-}
 
 fn trace(accel: &Accel, rays: &[Ray], set: RaySet, traversal: Traversal) -> u64 {
     let mut stats = TraceStats::default();
