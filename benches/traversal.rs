@@ -22,10 +22,6 @@ fn trace(accel: &Accel, rays: &[Ray], set: RaySet, traversal: Traversal) -> u64 
         match (traversal, set.is_occlusion()) {
             (Traversal::Single, true) => blocked[0] = accel.occluded(&group[0], &mut stats),
             (Traversal::Single, false) => hits[0] = accel.intersect(&group[0], &mut stats),
-            (Traversal::SingleBvh2, true) => {
-                blocked[0] = accel.occluded_bvh2(&group[0], &mut stats)
-            }
-            (Traversal::SingleBvh2, false) => hits[0] = accel.intersect_bvh2(&group[0], &mut stats),
             (Traversal::Packet4, true) => {
                 accel.occluded_packet::<4>(group, &mut blocked, &mut stats)
             }

@@ -191,26 +191,19 @@ pub fn read_rays(path: &Path) -> crate::Result<Vec<Ray>> {
 /// How rays are traversed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Traversal {
-    /// One ray at a time through the 4-wide tree (what `Accel::intersect` does).
+    /// One ray at a time (what `Accel::intersect` does).
     Single,
-    /// One ray at a time through the binary tree (`Accel::intersect_bvh2`), to compare the
-    /// trees; not in the default list.
-    SingleBvh2,
     Packet4,
     Packet8,
 }
 
 impl Traversal {
-    /// The traversals a benchmark runs by default.
+    /// The traversals a benchmark runs by default, and every one `--traversal` accepts.
     pub const ALL: [Traversal; 3] = [Traversal::Single, Traversal::Packet4, Traversal::Packet8];
-    /// Every traversal `--traversal` accepts.
-    pub const NAMED: [Traversal; 4] =
-        [Traversal::Single, Traversal::SingleBvh2, Traversal::Packet4, Traversal::Packet8];
 
     pub fn name(self) -> &'static str {
         match self {
             Traversal::Single => "single",
-            Traversal::SingleBvh2 => "single-bvh2",
             Traversal::Packet4 => "packet4",
             Traversal::Packet8 => "packet8",
         }
@@ -224,16 +217,16 @@ impl Traversal {
     /// Packet width (1 for single rays).
     pub fn width(self) -> usize {
         match self {
-            Traversal::Single | Traversal::SingleBvh2 => 1,
+            Traversal::Single => 1,
             Traversal::Packet4 => 4,
             Traversal::Packet8 => 8,
         }
     }
 
     pub fn parse(s: &str) -> crate::Result<Traversal> {
-        Traversal::NAMED.into_iter().find(|t| t.name() == s).ok_or_else(|| {
+        Traversal::ALL.into_iter().find(|t| t.name() == s).ok_or_else(|| {
             crate::Error::new(format!(
-                "unknown traversal '{s}' (expected single, single-bvh2, packet4 or packet8)"
+                "unknown traversal '{s}' (expected single, packet4 or packet8)"
             ))
         })
     }
@@ -256,6 +249,32 @@ impl TraceTotals {
         self.stats.add(&o.stats);
         self
     }
+}
+
+/// The order in which a traversal takes the rays of a set. Packets take primary rays of the
+/// full 800 x 600 frame in pixel blocks (4 x 2 for 8 lanes, 2 x 2 for 4), as a renderer
+/// generates camera packets and as the peer harness feeds Embree's packets; a row of 8
+/// pixels is a wider, less coherent bundle. Other sets, and single rays, keep file order.
+/// Returns the rays reordered, or `None` to keep the order.
+pub fn packet_order(set: RaySet, traversal: Traversal, rays: &[Ray]) -> Option<Vec<Ray>> {
+    let (w, h) = (WIDTH as usize, HEIGHT as usize);
+    let (bw, bh) = match traversal.width() {
+        8 => (4, 2),
+        4 => (2, 2),
+        _ => return None,
+    };
+    if set != RaySet::Primary || rays.len() != w * h {
+        return None;
+    }
+    let mut out = Vec::with_capacity(rays.len());
+    for by in (0..h).step_by(bh) {
+        for bx in (0..w).step_by(bw) {
+            for y in by..by + bh {
+                out.extend_from_slice(&rays[y * w + bx..y * w + bx + bw]);
+            }
+        }
+    }
+    Some(out)
 }
 
 /// Rays per unit of parallel work: large enough to amortise scheduling, small enough to
@@ -300,11 +319,6 @@ fn trace_chunk(
                     *b = accel.occluded(r, stats);
                 }
             }
-            Traversal::SingleBvh2 => {
-                for (b, r) in blocked.iter_mut().zip(rays) {
-                    *b = accel.occluded_bvh2(r, stats);
-                }
-            }
             Traversal::Packet4 => {
                 accel.occluded_packets_with::<4>(rays, fallback, &mut blocked, stats)
             }
@@ -319,11 +333,6 @@ fn trace_chunk(
             Traversal::Single => {
                 for (h, r) in hits.iter_mut().zip(rays) {
                     *h = accel.intersect(r, stats);
-                }
-            }
-            Traversal::SingleBvh2 => {
-                for (h, r) in hits.iter_mut().zip(rays) {
-                    *h = accel.intersect_bvh2(r, stats);
                 }
             }
             Traversal::Packet4 => {

@@ -1,5 +1,4 @@
-//! Every traversal against single-ray traversal of the 4-wide tree on the same rays: single
-//! rays through the binary tree and packets (4 and 8 wide) give the same hit or miss,
+//! Packets (4 and 8 wide) against single rays on the same rays: the same hit or miss,
 //! bit-identical t, u, v and the same prim for every ray, and the same occlusion answer for
 //! shadow rays.
 
@@ -15,15 +14,12 @@ fn bits(h: Option<Hit>) -> Option<(u32, u32, u32, u32)> {
     h.map(|h| (h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.prim))
 }
 
-/// Every ray's closest hit and occlusion agree between single rays through either tree and
-/// both packet widths. Returns the number of closest hits found (so callers can check the
+/// Every ray's closest hit and occlusion agree between single rays and both packet widths. Returns the number of closest hits found (so callers can check the
 /// rays test something).
 fn assert_agree(accel: &Accel, rays: &[Ray], what: &str) -> usize {
     let mut stats = TraceStats::default();
     let single: Vec<Option<Hit>> = rays.iter().map(|r| accel.intersect(r, &mut stats)).collect();
     let single_occ: Vec<bool> = rays.iter().map(|r| accel.occluded(r, &mut stats)).collect();
-    let bvh2: Vec<Option<Hit>> = rays.iter().map(|r| accel.intersect_bvh2(r, &mut stats)).collect();
-    let bvh2_occ: Vec<bool> = rays.iter().map(|r| accel.occluded_bvh2(r, &mut stats)).collect();
     let mut p4 = vec![None; rays.len()];
     let mut p8 = vec![None; rays.len()];
     accel.intersect_packets::<4>(rays, &mut p4, &mut stats);
@@ -34,8 +30,6 @@ fn assert_agree(accel: &Accel, rays: &[Ray], what: &str) -> usize {
     accel.occluded_packets::<8>(rays, &mut o8, &mut stats);
     for i in 0..rays.len() {
         let s = bits(single[i]);
-        assert_eq!(s, bits(bvh2[i]), "{what}: ray {i} {:?}: binary tree differs", rays[i]);
-        assert_eq!(single_occ[i], bvh2_occ[i], "{what}: ray {i} {:?}: binary occlusion", rays[i]);
         assert_eq!(s, bits(p4[i]), "{what}: ray {i} {:?}: packet4 differs", rays[i]);
         assert_eq!(s, bits(p8[i]), "{what}: ray {i} {:?}: packet8 differs", rays[i]);
         assert_eq!(single_occ[i], o4[i], "{what}: ray {i} {:?}: packet4 occlusion", rays[i]);
@@ -194,8 +188,8 @@ fn inactive_lanes_are_ignored() {
 }
 
 /// The counters are exact: the same rays give the same counts every time, every fallback
-/// threshold gives the same hits, and handing lanes to single-ray traversal at every node
-/// counts exactly what single-ray traversal of the binary tree counts.
+/// threshold gives the same hits, and handing every lane to single-ray traversal at the root
+/// counts exactly what single-ray traversal counts.
 #[test]
 fn counters_are_deterministic_and_fallback_does_not_change_hits() {
     let scene = common::coincident_light_box();
@@ -223,16 +217,12 @@ fn counters_are_deterministic_and_fallback_does_not_change_hits() {
     for fallback in [1, 3, 8] {
         assert_eq!(run(fallback).0, base, "fallback {fallback}");
     }
-    let mut single = TraceStats::default();
+    let (mut single, mut again) = (TraceStats::default(), TraceStats::default());
     for r in &rays {
-        let _ = accel.intersect_bvh2(r, &mut single);
-    }
-    assert_eq!(run(8).1, single, "all-fallback packets count as single rays");
-    let (mut wide, mut again) = (TraceStats::default(), TraceStats::default());
-    for r in &rays {
-        let _ = accel.intersect(r, &mut wide);
+        let _ = accel.intersect(r, &mut single);
         let _ = accel.intersect(r, &mut again);
     }
-    assert_eq!(wide, again, "the wide traversal counts deterministically");
-    assert!(wide.node_tests > 0 && wide.triangle_tests > 0);
+    assert_eq!(single, again, "single-ray traversal counts deterministically");
+    assert!(single.node_tests > 0 && single.triangle_tests > 0);
+    assert_eq!(run(8).1, single, "all-fallback packets count as single rays");
 }

@@ -1,17 +1,17 @@
 //! Acceleration structure: the public surface every stage uses.
 //!
-//! Triangles live in a binned-SAH BVH (flat, depth-first, 32-byte nodes) over SoA triangle
-//! columns in leaf order. Packets traverse that binary tree; single rays traverse a 4-wide
-//! tree collapsed from it (128-byte nodes, one SIMD test for four boxes) whose leaves are the
-//! same triangle ranges, so the triangle store is shared. The course scenes hold at most a handful of analytic spheres, so
-//! they are a short list tested after the triangles rather than BVH primitives.
+//! Triangles live in SoA columns in leaf order under one flat 4-wide BVH (128-byte nodes, one
+//! SIMD test for four boxes), collapsed from a binned-SAH binary BVH that is dropped once
+//! collapsed. Single rays and packets traverse the same wide tree, so the structure is the
+//! wide nodes plus the triangle columns. The course scenes hold at most a handful of analytic
+//! spheres, so they are a short list tested after the triangles rather than BVH primitives.
 
 pub mod build;
+mod leaf;
 pub mod node;
 pub mod packet;
 pub mod traverse_packet;
 pub mod traverse_single;
-pub mod traverse_wide;
 pub mod wide_node;
 
 use std::time::{Duration, Instant};
@@ -29,11 +29,8 @@ pub use traverse_packet::PacketStack;
 pub use wide_node::Bvh4Node;
 
 /// Largest binary subtree the collapse merges into one wide leaf (`build::collapse`; 0 keeps
-/// the binary leaves). The binary SAH makes leaves of 1.7 triangles on average; the wide
-/// leaf test takes 8 at once. Hits in merged leaves are checked against their binary leaf
-/// boxes so that they stay bit-identical to the binary tree's (`traverse_wide`). Measured
-/// (PERF.md, "Wide BVH"): maxplanck diffuse and shadow faster, CBbunny primary and shadow
-/// slower, memory down by a fifth.
+/// the binary leaves). The binary SAH makes leaves of 1.7 triangles on average; the
+/// single-ray leaf test takes 8 at once. Measured (PERF.md, "Wide BVH").
 pub const WIDE_LEAF: usize = 8;
 
 /// Sphere hits carry this bit in `Hit::prim`; the low bits are the sphere index.
@@ -52,15 +49,14 @@ pub enum AccelKind {
 /// Exact work counters, deterministic for a given traversal and ray order.
 ///
 /// - `rays`: queries (a packet counts its active lanes).
-/// - `node_tests`: ray-box tests, one per ray per box. Single-ray traversal of the 4-wide tree
-///   (`intersect`, `occluded`) counts, at every wide node it visits, one test per child box
-///   that the node holds (2 to 4; the root of a one-leaf tree holds 1), whether or not the
-///   lanes of unused slots are computed; the scene box is not tested separately. Single-ray
-///   traversal of the binary tree (`intersect_bvh2`, `occluded_bvh2`, packet fallback) tests
-///   the root and then both children of every interior node it visits. A packet-box test counts one test
-///   per lane active at that node (lanes that entered its box and whose best hit is not yet
-///   nearer), not W: inactive and finished lanes cost nothing in the count. A lane handed to
-///   single-ray fallback counts as single-ray traversal from then on.
+/// - `node_tests`: ray-box tests, one per ray per box. Single-ray traversal (`intersect`,
+///   `occluded`) counts, at every wide node it visits, one test per child box that the node
+///   holds (2 to 4; the root of a one-leaf tree holds 1), whether or not the lanes of unused
+///   slots are computed; the scene box is not tested separately. A packet counts, at every
+///   node it visits, one test per child box per lane active at that node (lanes that entered
+///   its box and whose best hit is not yet nearer), not W: inactive and finished lanes cost
+///   nothing in the count. A lane handed to single-ray fallback counts as single-ray
+///   traversal from then on.
 /// - `triangle_tests`: ray-triangle tests. One ray against a leaf of k triangles counts k (the
 ///   8-wide SIMD test of k < 8 triangles still counts k; an any-hit ray that stops at a
 ///   blocking group of 8 counts the groups tested). A packet leaf counts, per triangle, the
@@ -84,10 +80,7 @@ impl TraceStats {
 }
 
 pub struct Accel {
-    nodes: Vec<BvhNode>,
     wide_nodes: Vec<Bvh4Node>,
-    /// The binary leaf of every triangle in a merged wide leaf (`build::merged_leaf_map`).
-    leaf_of: Vec<u32>,
     tris: TriangleSoa,
     spheres: Vec<Sphere>,
     bounds: Aabb,
@@ -118,17 +111,11 @@ impl Accel {
             }
         };
         let tris = TriangleSoa::from_order(&corners, &order);
-        let mut nodes = if tris.is_empty() { Vec::new() } else { nodes };
-        // The builder reserves two nodes per triangle; a tree with leaves of several
-        // triangles uses far fewer.
-        nodes.shrink_to_fit();
+        let nodes = if tris.is_empty() { Vec::new() } else { nodes };
         let mut wide_nodes = build::collapse(&nodes, WIDE_LEAF);
         wide_nodes.shrink_to_fit();
-        let leaf_of = build::merged_leaf_map(&nodes, &wide_nodes, tris.len());
         Accel {
-            nodes,
             wide_nodes,
-            leaf_of,
             tris,
             spheres: scene.spheres.clone(),
             bounds: scene.bounds(),
@@ -144,49 +131,25 @@ impl Accel {
         self.bounds
     }
 
-    pub fn nodes(&self) -> &[BvhNode] {
-        &self.nodes
-    }
-
     pub fn triangles(&self) -> &TriangleSoa {
         &self.tris
     }
 
-    fn wide(&self) -> traverse_wide::WideBvh<'_> {
-        traverse_wide::WideBvh {
-            nodes: &self.wide_nodes,
-            bvh2: &self.nodes,
-            leaf_of: &self.leaf_of,
-        }
-    }
-
-    /// The 4-wide tree that single rays traverse.
+    /// The 4-wide tree.
     pub fn wide_nodes(&self) -> &[Bvh4Node] {
         &self.wide_nodes
     }
 
-    /// Bytes held by the structure: both node arrays plus triangle columns.
+    /// Bytes held by the structure: the wide nodes plus the triangle columns.
     pub fn memory_bytes(&self) -> usize {
-        self.nodes.capacity() * std::mem::size_of::<BvhNode>()
-            + self.wide_nodes.capacity() * std::mem::size_of::<Bvh4Node>()
-            + self.leaf_of.capacity() * 4
-            + self.tris.memory_bytes()
+        self.wide_nodes.capacity() * std::mem::size_of::<Bvh4Node>() + self.tris.memory_bytes()
     }
 
-    /// The closest hit along the ray within [t_min, t_max] (through the 4-wide tree).
+    /// The closest hit along the ray within [t_min, t_max].
     pub fn intersect(&self, ray: &Ray, stats: &mut TraceStats) -> Option<Hit> {
         stats.rays += 1;
         let mut r = *ray;
-        let best = traverse_wide::intersect(self.wide(), &self.tris, &mut r, stats);
-        self.spheres_after(r, best, stats)
-    }
-
-    /// `intersect` through the binary tree, as packets' single-ray fallback traverses it (for
-    /// tests and for measuring the two trees against each other).
-    pub fn intersect_bvh2(&self, ray: &Ray, stats: &mut TraceStats) -> Option<Hit> {
-        stats.rays += 1;
-        let mut r = *ray;
-        let best = traverse_single::intersect(&self.nodes, &self.tris, &mut r, stats);
+        let best = traverse_single::intersect(&self.wide_nodes, &self.tris, &mut r, stats);
         self.spheres_after(r, best, stats)
     }
 
@@ -207,17 +170,10 @@ impl Accel {
         best
     }
 
-    /// Whether anything blocks the ray within [t_min, t_max] (through the 4-wide tree).
+    /// Whether anything blocks the ray within [t_min, t_max].
     pub fn occluded(&self, ray: &Ray, stats: &mut TraceStats) -> bool {
         stats.rays += 1;
-        traverse_wide::occluded(self.wide(), &self.tris, ray, stats)
-            || self.spheres_block(ray, stats)
-    }
-
-    /// `occluded` through the binary tree.
-    pub fn occluded_bvh2(&self, ray: &Ray, stats: &mut TraceStats) -> bool {
-        stats.rays += 1;
-        traverse_single::occluded(&self.nodes, &self.tris, ray, stats)
+        traverse_single::occluded(&self.wide_nodes, &self.tris, ray, stats)
             || self.spheres_block(ray, stats)
     }
 
@@ -258,8 +214,14 @@ impl Accel {
         let mut p = *packet;
         let active = p.active_bits();
         stats.rays += active.count_ones() as u64;
-        let found =
-            traverse_packet::intersect(&self.nodes, &self.tris, &mut p, fallback, stack, stats);
+        let found = traverse_packet::intersect(
+            &self.wide_nodes,
+            &self.tris,
+            &mut p,
+            fallback,
+            stack,
+            stats,
+        );
         for (i, out) in hits.iter_mut().enumerate().take(W) {
             if active & (1 << i) == 0 {
                 *out = None;
@@ -310,7 +272,7 @@ impl Accel {
         let active = packet.active_bits();
         stats.rays += active.count_ones() as u64;
         let bits =
-            traverse_packet::occluded(&self.nodes, &self.tris, packet, fallback, stack, stats);
+            traverse_packet::occluded(&self.wide_nodes, &self.tris, packet, fallback, stack, stats);
         for (i, out) in blocked.iter_mut().enumerate().take(W) {
             *out = bits & (1 << i) != 0
                 || (active & (1 << i) != 0 && {

@@ -1,33 +1,34 @@
-//! W rays at once through the flat BVH: closest hit and any hit.
+//! W rays at once through the 4-wide BVH (`wide_node`): closest hit and any hit.
 //!
-//! Every node is tested against all active lanes at once (one SIMD slab test per child);
-//! children are visited front to back (the child nearer for more lanes first) with one stack
-//! shared by the packet, each entry remembering which lanes entered the subtree and at what
-//! distance. Leaves test one triangle against all W rays with the same Möller-Trumbore core as
-//! the single-ray path, so t, u, v are bit-identical. When no more than `fallback` lanes enter
-//! a subtree, those lanes finish it with single-ray traversal (`traverse_single::*_subtree`):
-//! a mostly-empty packet pays W lanes of work per node for a few rays' worth of benefit.
+//! Every child box of a node is tested against all active lanes at once (one SIMD slab test
+//! per child); entered children are visited nearest first (by the nearest lane's entry
+//! distance) with one stack shared by the packet, each entry remembering which lanes entered
+//! the subtree and at what distance. Leaves test one triangle against all W rays with the
+//! same Möller-Trumbore core as the single-ray path, so t, u, v are bit-identical. When no
+//! more than `fallback` lanes enter a subtree, those lanes finish it with single-ray
+//! traversal (`traverse_single::*_subtree`): a mostly-empty packet pays W lanes of work per
+//! box for a few rays' worth of benefit.
 //!
-//! Hits are the nearest (t, then smallest prim), which does not depend on the visiting
-//! order, and box tests are conservative (`BOX_INFLATE`), so packet and single-ray traversal
-//! return the same hit for every ray.
+//! Hits are the nearest (t, then smallest prim) among a set that does not depend on the
+//! visiting order (`leaf`: hits in front of the leaf box), and each lane's box test computes what the
+//! single-ray test computes, so packet and single-ray traversal return the same hit for every
+//! ray.
 
 use super::build::MAX_DEPTH;
-use super::node::BvhNode;
-use super::packet::{PacketHits, RayPacket, BOX_INFLATE};
-use super::traverse_single;
+use super::leaf;
+use super::packet::{PacketHits, RayPacket, BOX_INFLATE, MAX_W};
+use super::traverse_single::{self, Entry as SingleEntry};
+use super::wide_node::{Bvh4Node, EMPTY, LEAF_BIT};
 use super::TraceStats;
 use crate::geometry::moller_trumbore::{intersect_simd, V3};
-use crate::geometry::triangles::TriangleSoa;
+use crate::geometry::triangles::{TriangleSoa, LANES};
+use crate::math::{Hit, Ray};
 use crate::simd::SimdF32;
 
 /// Default single-ray fallback thresholds: a subtree entered by at most this many lanes is
-/// finished one ray at a time. Measured (PERF.md, "Traversal kernels"): with our scalar-box
-/// single-ray traversal every threshold above 0 was slower at both widths (a packet lane
-/// walks a node as cheaply as a lone ray does), so the fallback is off by default; it stays
-/// for a wider single-ray BVH, which would change that balance.
+/// finished one ray at a time. Measured (PERF.md, "Traversal kernels").
 pub const FALLBACK_4: u32 = 0;
-pub const FALLBACK_8: u32 = 0;
+pub const FALLBACK_8: u32 = 1;
 
 /// The default fallback threshold for width `W`.
 pub fn default_fallback(w: usize) -> u32 {
@@ -38,17 +39,26 @@ pub fn default_fallback(w: usize) -> u32 {
     }
 }
 
-/// Entry distances of all lanes into the box, and the mask of lanes that enter it within
-/// [t_min, t_max]. Lane by lane the same operations as `traverse_single::RayBox::slab`.
+/// The box of child slot `i` of a node, as a scalar min/max per axis.
 #[inline(always)]
-fn slab<V: SimdF32>(p: &RayPacket<V>, n: &BvhNode, t_max: V) -> (V, V) {
+fn child_box(n: &Bvh4Node, i: usize) -> ([f32; 3], [f32; 3]) {
+    let b = &n.bounds;
+    ([b[0][i], b[2][i], b[4][i]], [b[1][i], b[3][i], b[5][i]])
+}
+
+/// Entry distances of all lanes into the box, and the mask of lanes that enter it within
+/// [t_min, t_max]. Lane by lane the same values as `traverse_single`'s slab test (which picks
+/// the near plane by the direction's sign where this takes the min of the two planes: equal
+/// for the finite reciprocals `safe_recip` gives).
+#[inline(always)]
+fn slab<V: SimdF32>(p: &RayPacket<V>, min: [f32; 3], max: [f32; 3], t_max: V) -> (V, V) {
     let (o, inv) = (&p.origin, &p.inv_dir);
-    let x0 = (V::splat(n.min[0]) - o.x) * inv.x;
-    let x1 = (V::splat(n.max[0]) - o.x) * inv.x;
-    let y0 = (V::splat(n.min[1]) - o.y) * inv.y;
-    let y1 = (V::splat(n.max[1]) - o.y) * inv.y;
-    let z0 = (V::splat(n.min[2]) - o.z) * inv.z;
-    let z1 = (V::splat(n.max[2]) - o.z) * inv.z;
+    let x0 = (V::splat(min[0]) - o.x) * inv.x;
+    let x1 = (V::splat(max[0]) - o.x) * inv.x;
+    let y0 = (V::splat(min[1]) - o.y) * inv.y;
+    let y1 = (V::splat(max[1]) - o.y) * inv.y;
+    let z0 = (V::splat(min[2]) - o.z) * inv.z;
+    let z1 = (V::splat(max[2]) - o.z) * inv.z;
     let near =
         x0.fast_min(x1).fast_max(y0.fast_min(y1)).fast_max(z0.fast_min(z1)).fast_max(p.t_min);
     let far = x0.fast_max(x1).fast_min(y0.fast_max(y1)).fast_min(z0.fast_max(z1)).fast_min(t_max)
@@ -61,24 +71,31 @@ fn splat_tri<V: SimdF32>(cols: &[Vec<f32>; 3], i: usize) -> V3<V> {
     V3 { x: V::splat(cols[0][i]), y: V::splat(cols[1][i]), z: V::splat(cols[2][i]) }
 }
 
-/// One stack entry: a subtree, the lanes that entered its box and their entry distances.
+/// One stack entry: a subtree (a child reference and its leaf count, as in `Bvh4Node`), the
+/// lanes that entered its box and their entry distances, and the nearest of those distances
+/// (the visiting order's key).
 #[derive(Clone, Copy)]
 struct Entry<V> {
-    node: u32,
+    child: u32,
+    count: u32,
     lanes: u32,
+    key: f32,
     near: V,
 }
 
-/// Traversal stacks, reused from packet to packet: a fixed array of `MAX_DEPTH` entries would
-/// be zeroed for every packet (4 KiB at W = 8), which cost about a tenth of a primary ray.
+/// Traversal stacks, reused from packet to packet: a fixed array of entries would be zeroed
+/// for every packet (kilobytes at W = 8), which cost about a tenth of a primary ray.
 pub struct PacketStack<V> {
     closest: Vec<Entry<V>>,
-    any: Vec<(u32, u32)>,
+    any: Vec<(u32, u32, u32)>,
 }
 
 impl<V> PacketStack<V> {
     pub fn new() -> PacketStack<V> {
-        PacketStack { closest: Vec::with_capacity(MAX_DEPTH), any: Vec::with_capacity(MAX_DEPTH) }
+        PacketStack {
+            closest: Vec::with_capacity(3 * MAX_DEPTH),
+            any: Vec::with_capacity(3 * MAX_DEPTH),
+        }
     }
 }
 
@@ -88,9 +105,59 @@ impl<V> Default for PacketStack<V> {
     }
 }
 
+/// The smallest entry distance among the lanes `lanes`.
+#[inline(always)]
+fn nearest_lane<V: SimdF32>(near: V, lanes: u32) -> f32 {
+    let mut a = [f32::INFINITY; MAX_W];
+    V::select(V::from_bitmask(lanes), near, V::splat(f32::INFINITY)).store(&mut a);
+    a[..V::W].iter().copied().fold(f32::INFINITY, f32::min)
+}
+
+/// The children of node `n` that some of `lanes` enter, farthest first (by their nearest
+/// lane), and how many there are.
+#[inline(always)]
+fn entered_children<V: SimdF32>(
+    p: &RayPacket<V>,
+    n: &Bvh4Node,
+    lanes: u32,
+    stats: &mut TraceStats,
+) -> ([Entry<V>; 4], usize) {
+    let mut out = [Entry { child: EMPTY, count: 0, lanes: 0, key: 0.0, near: V::splat(0.0) }; 4];
+    let mut k = 0;
+    let per_box = lanes.count_ones() as u64;
+    for i in 0..4 {
+        if n.child[i] == EMPTY {
+            break;
+        }
+        stats.node_tests += per_box;
+        let (min, max) = child_box(n, i);
+        let (m, near) = slab(p, min, max, p.t_max);
+        let entered = m.bitmask() & lanes;
+        if entered == 0 {
+            continue;
+        }
+        let e = Entry {
+            child: n.child[i],
+            count: n.count[i],
+            lanes: entered,
+            key: nearest_lane(near, entered),
+            near,
+        };
+        // Insertion into the farthest-first order.
+        let mut j = k;
+        while j > 0 && out[j - 1].key < e.key {
+            out[j] = out[j - 1];
+            j -= 1;
+        }
+        out[j] = e;
+        k += 1;
+    }
+    (out, k)
+}
+
 /// Closest hits of the packet's active lanes; `p.t_max` shrinks lane by lane as hits are found.
 pub fn intersect<V: SimdF32>(
-    nodes: &[BvhNode],
+    nodes: &[Bvh4Node],
     tris: &TriangleSoa,
     p: &mut RayPacket<V>,
     fallback: u32,
@@ -99,57 +166,33 @@ pub fn intersect<V: SimdF32>(
 ) -> PacketHits<V> {
     let mut hits = PacketHits::none();
     let active = p.active_bits();
-    stats.node_tests += active.count_ones() as u64;
     if nodes.is_empty() || active == 0 {
         return hits;
     }
-    let (m, near) = slab(p, &nodes[0], p.t_max);
-    let lanes = m.bitmask() & active;
     let stack = &mut stack.closest;
     stack.clear();
-    let mut cur = Entry { node: 0, lanes, near };
+    let mut cur = Entry { child: 0, count: 0, lanes: active, key: 0.0, near: p.t_min };
     loop {
         // Lanes whose best hit is already nearer than the subtree drop out of it.
         let lanes = cur.lanes & cur.near.simd_le(p.t_max * V::splat(BOX_INFLATE)).bitmask();
         if lanes != 0 {
-            let node = cur.node as usize;
             if lanes.count_ones() <= fallback {
-                finish_single(nodes, tris, node, lanes, p, &mut hits, stats);
-            } else {
-                let n = &nodes[node];
-                if n.is_leaf() {
-                    intersect_leaf(tris, n, lanes, p, &mut hits, stats);
+                finish_single(nodes, tris, &cur, lanes, p, &mut hits, stats);
+            } else if cur.child & LEAF_BIT != 0 {
+                let (first, count) = ((cur.child & !LEAF_BIT) as usize, cur.count as usize);
+                if leaf_by_lane(lanes, count) {
+                    lane_by_lane(lanes, cur.near, p, &mut hits, |ray, best, near| {
+                        leaf::intersect_leaf(tris, first, count, near, ray, best, stats)
+                    });
                 } else {
-                    let (a, b) = (node + 1, n.index as usize);
-                    let (ma, ta) = slab(p, &nodes[a], p.t_max);
-                    let (mb, tb) = slab(p, &nodes[b], p.t_max);
-                    stats.node_tests += 2 * lanes.count_ones() as u64;
-                    let (la, lb) = (ma.bitmask() & lanes, mb.bitmask() & lanes);
-                    if la != 0 && lb != 0 {
-                        // Front to back for the majority of the lanes that enter both.
-                        let both = la & lb;
-                        let a_first = ta.simd_le(tb).bitmask() & both;
-                        let (first, second) = if 2 * a_first.count_ones() >= both.count_ones() {
-                            (
-                                Entry { node: a as u32, lanes: la, near: ta },
-                                Entry { node: b as u32, lanes: lb, near: tb },
-                            )
-                        } else {
-                            (
-                                Entry { node: b as u32, lanes: lb, near: tb },
-                                Entry { node: a as u32, lanes: la, near: ta },
-                            )
-                        };
-                        stack.push(second);
-                        cur = first;
-                        continue;
-                    } else if la != 0 {
-                        cur = Entry { node: a as u32, lanes: la, near: ta };
-                        continue;
-                    } else if lb != 0 {
-                        cur = Entry { node: b as u32, lanes: lb, near: tb };
-                        continue;
-                    }
+                    intersect_leaf(tris, first, count, cur.near, lanes, p, &mut hits, stats);
+                }
+            } else {
+                let (children, k) = entered_children(p, &nodes[cur.child as usize], lanes, stats);
+                if k > 0 {
+                    stack.extend_from_slice(&children[..k - 1]);
+                    cur = children[k - 1];
+                    continue;
                 }
             }
         }
@@ -160,30 +203,29 @@ pub fn intersect<V: SimdF32>(
     }
 }
 
-/// Lanes `lanes` finish the subtree at `node` one ray at a time.
-#[inline(never)]
-fn finish_single<V: SimdF32>(
-    nodes: &[BvhNode],
-    tris: &TriangleSoa,
-    node: usize,
+/// Runs `trace(ray, best, entry distance)` for each lane of `lanes` as a single ray (with the
+/// lane's current best hit), and takes the hits back into the packet.
+#[inline(always)]
+fn lane_by_lane<V: SimdF32>(
     lanes: u32,
+    near: V,
     p: &mut RayPacket<V>,
     hits: &mut PacketHits<V>,
-    stats: &mut TraceStats,
+    mut trace: impl FnMut(&mut Ray, &mut Option<Hit>, f32),
 ) {
     let mut bits = lanes;
-    let mut t_max = [0.0f32; super::packet::MAX_W];
+    let mut t_max = [0.0f32; MAX_W];
     p.t_max.store(&mut t_max);
-    let mut u = t_max;
-    let mut v = t_max;
+    let (mut u, mut v, mut entry) = (t_max, t_max, t_max);
     hits.u.store(&mut u);
     hits.v.store(&mut v);
+    near.store(&mut entry);
     while bits != 0 {
         let i = bits.trailing_zeros() as usize;
         bits &= bits - 1;
         let mut ray = p.ray(i);
         let mut best = hits.get(i);
-        traverse_single::intersect_subtree(nodes, tris, node, &mut ray, &mut best, stats);
+        trace(&mut ray, &mut best, entry[i]);
         if let Some(h) = best {
             t_max[i] = h.t;
             u[i] = h.u;
@@ -198,19 +240,49 @@ fn finish_single<V: SimdF32>(
     hits.v = V::load(&v);
 }
 
-/// Every triangle of the leaf against the lanes `lanes`.
-#[inline(always)]
-fn intersect_leaf<V: SimdF32>(
+/// Lanes `lanes` finish the subtree `e` one ray at a time.
+#[inline(never)]
+fn finish_single<V: SimdF32>(
+    nodes: &[Bvh4Node],
     tris: &TriangleSoa,
-    n: &BvhNode,
+    e: &Entry<V>,
     lanes: u32,
     p: &mut RayPacket<V>,
     hits: &mut PacketHits<V>,
     stats: &mut TraceStats,
 ) {
-    let (first, count) = (n.index as usize, n.count as usize);
+    lane_by_lane(lanes, e.near, p, hits, |ray, best, t| {
+        let start = SingleEntry { child: e.child, count: e.count, t };
+        traverse_single::intersect_subtree(nodes, tris, start, ray, best, stats);
+    });
+}
+
+/// Whether a leaf of `count` triangles is cheaper to test lane by lane (one 8-wide test of
+/// up to 8 triangles per lane) than triangle by triangle (one W-wide test per triangle).
+/// Packets reach most leaves with one or two lanes left (CBbunny primary rays: 1.5 on
+/// average), where testing a merged 8-triangle leaf triangle by triangle wastes most lanes.
+#[inline(always)]
+fn leaf_by_lane(lanes: u32, count: usize) -> bool {
+    lanes.count_ones() as usize * count.div_ceil(LANES) < count
+}
+
+/// Every triangle of the leaf `first .. first + count`, entered at `near`, against the lanes
+/// `lanes`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)] // the leaf (range and entry distances), the lanes, and the packet's state
+fn intersect_leaf<V: SimdF32>(
+    tris: &TriangleSoa,
+    first: usize,
+    count: usize,
+    near: V,
+    lanes: u32,
+    p: &mut RayPacket<V>,
+    hits: &mut PacketHits<V>,
+    stats: &mut TraceStats,
+) {
     stats.triangle_tests += (count as u64) * lanes.count_ones() as u64;
     let valid = V::from_bitmask(lanes);
+    let inflate = V::splat(BOX_INFLATE);
     for i in first..first + count {
         let (mask, t, u, v) = intersect_simd(
             p.origin,
@@ -222,6 +294,8 @@ fn intersect_leaf<V: SimdF32>(
             p.t_max,
             valid,
         );
+        // Hits in front of the leaf box do not count (`leaf`).
+        let mask = mask & (t * inflate).simd_ge(near);
         let take = mask.bitmask();
         if take == 0 {
             continue;
@@ -260,9 +334,10 @@ fn drop_ties<V: SimdF32>(mut take: u32, ties: u32, prim: u32, hits: &PacketHits<
 }
 
 /// Which active lanes are blocked within [t_min, t_max] (bit `i` for lane `i`); stops as soon
-/// as every active lane is.
+/// as every active lane is. Children are visited farthest first, as single-ray occlusion
+/// does (`traverse_single::occluded_subtree`).
 pub fn occluded<V: SimdF32>(
-    nodes: &[BvhNode],
+    nodes: &[Bvh4Node],
     tris: &TriangleSoa,
     p: &RayPacket<V>,
     fallback: u32,
@@ -270,48 +345,52 @@ pub fn occluded<V: SimdF32>(
     stats: &mut TraceStats,
 ) -> u32 {
     let active = p.active_bits();
-    stats.node_tests += active.count_ones() as u64;
     if nodes.is_empty() || active == 0 {
         return 0;
     }
     let mut blocked = 0u32;
-    let (m, _) = slab(p, &nodes[0], p.t_max);
     let stack = &mut stack.any;
     stack.clear();
-    let mut cur = (0u32, m.bitmask() & active);
+    // (child reference, leaf count, lanes)
+    let mut cur = (0u32, 0u32, active);
     loop {
-        let lanes = cur.1 & !blocked;
+        let lanes = cur.2 & !blocked;
         if lanes != 0 {
-            let node = cur.0 as usize;
+            let (child, count) = (cur.0, cur.1);
             if lanes.count_ones() <= fallback {
                 let mut bits = lanes;
                 while bits != 0 {
                     let i = bits.trailing_zeros() as usize;
                     bits &= bits - 1;
-                    if traverse_single::occluded_subtree(nodes, tris, node, &p.ray(i), stats) {
+                    let start = SingleEntry { child, count, t: 0.0 };
+                    let ray = p.ray(i);
+                    if traverse_single::occluded_subtree(nodes, tris, start, &ray, stats) {
                         blocked |= 1 << i;
                     }
                 }
-            } else {
-                let n = &nodes[node];
-                if n.is_leaf() {
-                    blocked |= occluded_leaf(tris, n, lanes, p, stats);
+            } else if child & LEAF_BIT != 0 {
+                let (first, count) = ((child & !LEAF_BIT) as usize, count as usize);
+                if leaf_by_lane(lanes, count) {
+                    let mut bits = lanes;
+                    while bits != 0 {
+                        let i = bits.trailing_zeros() as usize;
+                        bits &= bits - 1;
+                        if leaf::occluded_leaf(tris, first, count, &p.ray(i), stats) {
+                            blocked |= 1 << i;
+                        }
+                    }
                 } else {
-                    let (a, b) = (node + 1, n.index as usize);
-                    let (ma, _) = slab(p, &nodes[a], p.t_max);
-                    let (mb, _) = slab(p, &nodes[b], p.t_max);
-                    stats.node_tests += 2 * lanes.count_ones() as u64;
-                    let (la, lb) = (ma.bitmask() & lanes, mb.bitmask() & lanes);
-                    if la != 0 && lb != 0 {
-                        stack.push((b as u32, lb));
+                    blocked |= occluded_leaf(tris, first, count, lanes, p, stats);
+                }
+            } else {
+                let (children, k) = entered_children(p, &nodes[child as usize], lanes, stats);
+                if k > 0 {
+                    // Farthest first: push in reverse of the farthest-first order.
+                    for e in children[1..k].iter().rev() {
+                        stack.push((e.child, e.count, e.lanes));
                     }
-                    if la != 0 {
-                        cur = (a as u32, la);
-                        continue;
-                    } else if lb != 0 {
-                        cur = (b as u32, lb);
-                        continue;
-                    }
+                    cur = (children[0].child, children[0].count, children[0].lanes);
+                    continue;
                 }
             }
             if blocked == active {
@@ -329,13 +408,14 @@ pub fn occluded<V: SimdF32>(
 #[inline(always)]
 fn occluded_leaf<V: SimdF32>(
     tris: &TriangleSoa,
-    n: &BvhNode,
+    first: usize,
+    count: usize,
     lanes: u32,
     p: &RayPacket<V>,
     stats: &mut TraceStats,
 ) -> u32 {
     let mut open = lanes;
-    for i in n.index as usize..(n.index + n.count) as usize {
+    for i in first..first + count {
         stats.triangle_tests += open.count_ones() as u64;
         let (mask, ..) = intersect_simd(
             p.origin,
@@ -358,7 +438,7 @@ fn occluded_leaf<V: SimdF32>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::accel::traverse_single::RayBox;
+    use crate::accel::traverse_single::WideRay;
     use crate::math::{Ray, Vec3};
     use crate::sampler::Pcg32;
     use wide::{f32x4, f32x8};
@@ -371,7 +451,11 @@ mod tests {
         let mut hit = 0;
         for case in 0..4000 {
             let (a, b) = (Vec3::new(r(), r(), r()), Vec3::new(r(), r(), r()));
-            let n = BvhNode { min: a.min(b).into(), index: 0, max: a.max(b).into(), count: 0 };
+            let (min, max): ([f32; 3], [f32; 3]) = (a.min(b).into(), a.max(b).into());
+            // The box in slot 1 of a node (slot 0 a different box, so slots are not mixed up).
+            let mut n = Bvh4Node::EMPTY_NODE;
+            n.set_child(0, [9.0; 3], [10.0; 3], 1, 0);
+            n.set_child(1, min, max, 2, 0);
             let rays: Vec<Ray> = (0..V::W)
                 .map(|k| {
                     let mut o = Vec3::new(r(), r(), r()) * 2.0;
@@ -382,7 +466,7 @@ mod tests {
                         0 => d.x = 0.0,
                         1 => {
                             d.z = -0.0;
-                            o.z = n.min[2];
+                            o.z = min[2];
                         }
                         _ => {}
                     }
@@ -390,14 +474,16 @@ mod tests {
                 })
                 .collect();
             let p = RayPacket::<V>::from_rays(&rays);
-            let (mask, near) = slab(&p, &n, p.t_max);
+            let (bmin, bmax) = child_box(&n, 1);
+            let (mask, near) = slab(&p, bmin, bmax, p.t_max);
             for (k, ray) in rays.iter().enumerate() {
-                let s = RayBox::new(ray).slab(&n, ray.t_max);
+                let (t, bits) = WideRay::new(ray).slab(&n, ray.t_max);
+                let single_hit = bits & 0b10 != 0;
                 let lane_hit = mask.bitmask() & (1 << k) != 0;
-                assert_eq!(s != f32::INFINITY, lane_hit, "case {case} lane {k}");
+                assert_eq!(single_hit, lane_hit, "case {case} lane {k}");
                 if lane_hit {
                     hit += 1;
-                    assert_eq!(s.to_bits(), near.lane(k).to_bits());
+                    assert_eq!(t.to_array()[1].to_bits(), near.lane(k).to_bits());
                 }
             }
         }

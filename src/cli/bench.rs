@@ -17,7 +17,7 @@ Options:
   --ray-set primary|diffuse|shadow   one set (default: all three); shadow rays are any-hit
   --rays-in FILE        trace the rays of FILE (32-byte records) instead; needs --ray-set
   --rays-out PREFIX     also write PREFIX.{primary,diffuse,shadow}.rays
-  --traversal single|single-bvh2|packet4|packet8   (default: single, packet4, packet8)
+  --traversal single|packet4|packet8   (default: all three)
   --threads N           worker threads (default 1)
   --packet-fallback N   packets hand subtrees entered by <= N lanes to single rays
                         (default: the tuned value; for measuring it)
@@ -81,8 +81,10 @@ pub fn run(args: &[String]) -> Result<()> {
     let mut results = Vec::new();
     for (set, rays) in &sets {
         for &traversal in &a.traversals {
+            let ordered = bench::packet_order(*set, traversal, rays);
+            let traced = ordered.as_deref().unwrap_or(rays);
             let (best, totals) =
-                bench::time_trace(&accel, rays, *set, traversal, a.fallback, &pool, a.reps);
+                bench::time_trace(&accel, traced, *set, traversal, a.fallback, &pool, a.reps);
             let r = BenchResult {
                 scene: name.clone(),
                 triangles: scene.triangles.len(),

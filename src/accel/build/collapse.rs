@@ -8,9 +8,7 @@
 //! subtree's triangles are contiguous (leaves are in depth-first order), a subtree of at most
 //! `max_leaf` triangles can become one wide leaf: the binary SAH prices every triangle as one
 //! test and makes leaves of one or two triangles, while the single-ray leaf test takes 8 at
-//! once. A merged leaf's box is larger than its parts', and the binary tree's boxes cull some
-//! real hits (the triangle test's margin hits, rays in a flat box's plane), so traversal
-//! checks hits in merged leaves against their binary leaf boxes (`merged_leaf_map`).
+//! once.
 
 use crate::accel::node::BvhNode;
 use crate::accel::wide_node::{Bvh4Node, LEAF_BIT};
@@ -34,40 +32,6 @@ pub fn collapse(nodes: &[BvhNode], max_leaf: usize) -> Vec<Bvh4Node> {
     }
     out
 }
-
-/// Marks, for every stored triangle (`n` of them), the binary leaf that holds it if the wide
-/// tree merged that leaf into a larger one, else `NO_LEAF`; empty if nothing was merged.
-/// Traversal checks hits in merged leaves against their binary leaf boxes
-/// (`traverse_wide::binary_culling`).
-pub fn merged_leaf_map(nodes: &[BvhNode], wide: &[Bvh4Node], n: usize) -> Vec<u32> {
-    let mut leaf_of = vec![NO_LEAF; n];
-    for (i, b) in nodes.iter().enumerate().filter(|(_, b)| b.is_leaf()) {
-        leaf_of[b.index as usize..(b.index + b.count) as usize].fill(i as u32);
-    }
-    let mut merged = false;
-    for w in wide {
-        for (&c, &count) in w.child.iter().zip(&w.count) {
-            if c & LEAF_BIT == 0 || count == 0 {
-                continue;
-            }
-            let first = (c & !LEAF_BIT) as usize;
-            let b = &nodes[leaf_of[first] as usize];
-            if b.index as usize == first && b.count == count {
-                // A binary leaf as it was: its box is the one the binary tree tests.
-                leaf_of[first..first + count as usize].fill(NO_LEAF);
-            } else {
-                merged = true;
-            }
-        }
-    }
-    if !merged {
-        leaf_of.clear();
-    }
-    leaf_of
-}
-
-/// `merged_leaf_map`'s entry for a triangle that needs no check.
-pub const NO_LEAF: u32 = u32::MAX;
 
 /// (first triangle, triangle count) of every binary subtree. Children follow their parent in
 /// the array, so one backward pass sees both children before the parent.

@@ -11,7 +11,7 @@
 mod binned_sah;
 mod collapse;
 
-pub use collapse::{collapse, merged_leaf_map, NO_LEAF};
+pub use collapse::collapse;
 
 use glam::Vec4;
 
