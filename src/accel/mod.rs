@@ -212,23 +212,30 @@ impl Accel {
         Lanes<W>: LaneWidth,
     {
         let mut p = *packet;
+        self.trace_packet::<W>(&mut p, fallback, stack, hits, stats);
+    }
+
+    /// `intersect_ray_packet` on a packet the caller no longer needs (its `t_max` shrinks to
+    /// the hits), which saves copying it.
+    fn trace_packet<const W: usize>(
+        &self,
+        p: &mut RayPacket<VFloat<W>>,
+        fallback: u32,
+        stack: &mut PacketStack<VFloat<W>>,
+        hits: &mut [Option<Hit>],
+        stats: &mut TraceStats,
+    ) where
+        Lanes<W>: LaneWidth,
+    {
         let active = p.active_bits();
         stats.rays += active.count_ones() as u64;
-        let found = traverse_packet::intersect(
-            &self.wide_nodes,
-            &self.tris,
-            &mut p,
-            fallback,
-            stack,
-            stats,
-        );
+        let found =
+            traverse_packet::intersect(&self.wide_nodes, &self.tris, p, fallback, stack, stats);
+        // Inactive lanes never hit: `found` has no hit bit for them.
+        let found = found.all();
         for (i, out) in hits.iter_mut().enumerate().take(W) {
-            if active & (1 << i) == 0 {
-                *out = None;
-                continue;
-            }
-            let mut best = found.get(i);
-            if !self.spheres.is_empty() {
+            let mut best = found[i];
+            if active & (1 << i) != 0 && !self.spheres.is_empty() {
                 // The spheres after the triangles, in the order `intersect` tests them.
                 let mut r = p.ray(i);
                 for (k, s) in self.spheres.iter().enumerate() {
@@ -310,8 +317,8 @@ impl Accel {
     {
         let mut stack = PacketStack::new();
         for (r, h) in rays.chunks(W).zip(hits.chunks_mut(W)) {
-            let packet = RayPacket::<VFloat<W>>::from_rays(r);
-            self.intersect_ray_packet::<W>(&packet, fallback, &mut stack, h, stats);
+            let mut packet = RayPacket::<VFloat<W>>::from_rays(r);
+            self.trace_packet::<W>(&mut packet, fallback, &mut stack, h, stats);
         }
     }
 

@@ -64,28 +64,19 @@ impl<V: SimdF32> RayPacket<V> {
     #[inline]
     pub fn from_rays_masked(rays: &[Ray], active_bits: u32) -> RayPacket<V> {
         let n = rays.len().min(V::W);
-        // Transpose the 32-byte records into 8 columns; inactive lanes keep zeros.
-        let mut cols = [[0.0f32; MAX_W]; 8];
-        for (i, r) in rays[..n].iter().enumerate() {
-            let vals =
-                [r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z, r.t_min, r.t_max];
-            for (c, v) in cols.iter_mut().zip(vals) {
-                c[i] = v;
-            }
-        }
-        let v3 = |k: usize| V3 {
-            x: V::load(&cols[k]),
-            y: V::load(&cols[k + 1]),
-            z: V::load(&cols[k + 2]),
-        };
-        let dir = v3(3);
+        // Inactive lanes keep zeros.
+        let [ox, oy, oz, dx, dy, dz, t_min, t_max] = V::columns8(n, |i| {
+            let r = &rays[i];
+            [r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z, r.t_min, r.t_max]
+        });
+        let dir = V3 { x: dx, y: dy, z: dz };
         let filled = if n >= 32 { !0 } else { (1u32 << n) - 1 };
         RayPacket {
-            origin: v3(0),
+            origin: V3 { x: ox, y: oy, z: oz },
             dir,
             inv_dir: V3 { x: safe_recip_v(dir.x), y: safe_recip_v(dir.y), z: safe_recip_v(dir.z) },
-            t_min: V::load(&cols[6]),
-            t_max: V::load(&cols[7]),
+            t_min,
+            t_max,
             active: V::from_bitmask(filled & active_bits),
         }
     }
@@ -124,6 +115,24 @@ impl<V: SimdF32> PacketHits<V> {
             prim: [u32::MAX; MAX_W],
             hit_bits: 0,
         }
+    }
+
+    /// Every lane's hit (`None` past `W` and where nothing was hit), with one store per
+    /// vector rather than one per lane and field.
+    #[inline(always)]
+    pub fn all(&self) -> [Option<Hit>; MAX_W] {
+        let (mut t, mut u, mut v) = ([0.0; MAX_W], [0.0; MAX_W], [0.0; MAX_W]);
+        self.t.store(&mut t);
+        self.u.store(&mut u);
+        self.v.store(&mut v);
+        std::array::from_fn(|i| {
+            (self.hit_bits & (1 << i) != 0).then(|| Hit {
+                t: t[i],
+                u: u[i],
+                v: v[i],
+                prim: self.prim[i],
+            })
+        })
     }
 
     pub fn get(&self, i: usize) -> Option<Hit> {

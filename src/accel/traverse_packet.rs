@@ -105,12 +105,12 @@ impl<V> Default for PacketStack<V> {
     }
 }
 
-/// The smallest entry distance among the lanes `lanes`.
+/// The visiting order's key for a child the lanes `lanes` (not 0) entered: the entry
+/// distance of the first of them. (The smallest over the lanes ordered no better on the
+/// coherent packets this serves, at four times the instructions.)
 #[inline(always)]
-fn nearest_lane<V: SimdF32>(near: V, lanes: u32) -> f32 {
-    let mut a = [f32::INFINITY; MAX_W];
-    V::select(V::from_bitmask(lanes), near, V::splat(f32::INFINITY)).store(&mut a);
-    a[..V::W].iter().copied().fold(f32::INFINITY, f32::min)
+fn order_key<V: SimdF32>(near: V, lanes: u32) -> f32 {
+    near.lane(lanes.trailing_zeros() as usize)
 }
 
 /// The children of node `n` that some of `lanes` enter, farthest first (by their nearest
@@ -124,12 +124,12 @@ fn entered_children<V: SimdF32>(
 ) -> ([Entry<V>; 4], usize) {
     let mut out = [Entry { child: EMPTY, count: 0, lanes: 0, key: 0.0, near: V::splat(0.0) }; 4];
     let mut k = 0;
-    let per_box = lanes.count_ones() as u64;
+    let mut boxes = 0;
     for i in 0..4 {
         if n.child[i] == EMPTY {
             break;
         }
-        stats.node_tests += per_box;
+        boxes += 1;
         let (min, max) = child_box(n, i);
         let (m, near) = slab(p, min, max, p.t_max);
         let entered = m.bitmask() & lanes;
@@ -140,7 +140,7 @@ fn entered_children<V: SimdF32>(
             child: n.child[i],
             count: n.count[i],
             lanes: entered,
-            key: nearest_lane(near, entered),
+            key: order_key(near, entered),
             near,
         };
         // Insertion into the farthest-first order.
@@ -152,6 +152,7 @@ fn entered_children<V: SimdF32>(
         out[j] = e;
         k += 1;
     }
+    stats.node_tests += boxes * lanes.count_ones() as u64;
     (out, k)
 }
 

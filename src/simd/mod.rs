@@ -56,6 +56,11 @@ pub trait SimdF32:
 
     /// The mask whose lane `i` is set iff bit `i` of `bits` is.
     fn from_bitmask(bits: u32) -> Self;
+
+    /// Transposes `n <= W` rows of 8 values (`row(i)`) into 8 columns: lane `i` of column `k`
+    /// is value `k` of row `i` (0 for lanes `n..W`). Gathers 32-byte ray records into a packet
+    /// with shuffles instead of 8 W scalar moves.
+    fn columns8(n: usize, row: impl Fn(usize) -> [f32; 8]) -> [Self; 8];
 }
 
 /// All bits set: a true mask lane.
@@ -126,6 +131,10 @@ macro_rules! impl_simd_f32 {
                 self.to_bitmask()
             }
             #[inline(always)]
+            fn columns8(n: usize, row: impl Fn(usize) -> [f32; 8]) -> [Self; 8] {
+                <$t as Columns8>::columns8_impl(n.min($w), row)
+            }
+            #[inline(always)]
             fn from_bitmask(bits: u32) -> Self {
                 $t::new(std::array::from_fn(|i| if bits & (1 << i) != 0 { TRUE } else { 0.0 }))
             }
@@ -135,6 +144,33 @@ macro_rules! impl_simd_f32 {
 
 impl_simd_f32!(f32x4, 4);
 impl_simd_f32!(f32x8, 8);
+
+impl Columns8 for f32x8 {
+    #[inline(always)]
+    fn columns8_impl(n: usize, row: impl Fn(usize) -> [f32; 8]) -> [f32x8; 8] {
+        let rows = std::array::from_fn(|i| if i < n { f32x8::new(row(i)) } else { f32x8::ZERO });
+        f32x8::transpose(rows)
+    }
+}
+
+impl Columns8 for f32x4 {
+    #[inline(always)]
+    fn columns8_impl(n: usize, row: impl Fn(usize) -> [f32; 8]) -> [f32x4; 8] {
+        let (mut lo, mut hi) = ([f32x4::ZERO; 4], [f32x4::ZERO; 4]);
+        for i in 0..n.min(4) {
+            let r = row(i);
+            lo[i] = f32x4::new([r[0], r[1], r[2], r[3]]);
+            hi[i] = f32x4::new([r[4], r[5], r[6], r[7]]);
+        }
+        let (a, b) = (f32x4::transpose(lo), f32x4::transpose(hi));
+        [a[0], a[1], a[2], a[3], b[0], b[1], b[2], b[3]]
+    }
+}
+
+/// The width-specific transpose behind `SimdF32::columns8`.
+trait Columns8: Sized {
+    fn columns8_impl(n: usize, row: impl Fn(usize) -> [f32; 8]) -> [Self; 8];
+}
 
 /// Maps a packet width to its lane type: `Lanes<4>` is `f32x4`, `Lanes<8>` is `f32x8`. Public
 /// APIs take the width as a const generic (`intersect_packet::<8>`), kernels the lane type.
@@ -170,6 +206,24 @@ mod tests {
         assert_eq!(a.simd_lt(b).bitmask(), (1u32 << V::W) - 1);
         assert_eq!(V::select(V::first_lanes(1), a, b).lane(0), 1.0);
         assert_eq!(V::select(V::first_lanes(1), a, b).lane(1), 2.0);
+    }
+
+    fn columns<V: SimdF32>() {
+        let rows: Vec<[f32; 8]> =
+            (0..V::W - 1).map(|i| std::array::from_fn(|k| (10 * i + k) as f32)).collect();
+        let cols = V::columns8(rows.len(), |i| rows[i]);
+        for (k, col) in cols.iter().enumerate() {
+            for i in 0..V::W {
+                let want = if i < rows.len() { (10 * i + k) as f32 } else { 0.0 };
+                assert_eq!(col.lane(i), want, "column {k} lane {i}");
+            }
+        }
+    }
+
+    #[test]
+    fn columns_transpose_rows_at_both_widths() {
+        columns::<f32x4>();
+        columns::<f32x8>();
     }
 
     #[test]
