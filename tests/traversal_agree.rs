@@ -163,12 +163,12 @@ fn inactive_lanes_are_ignored() {
         let mut s8 = TraceStats::default();
         let mut hits = [None; 8];
         let p8 = RayPacket::<VFloat<8>>::from_rays_masked(&rays, mask);
-        accel.intersect_ray_packet::<8>(&p8, 0, &mut PacketStack::new(), &mut hits, &mut s8);
+        accel.intersect_ray_packet::<8>(p8, 0, &mut PacketStack::new(), &mut hits, &mut s8);
         let mut blocked = [false; 8];
         accel.occluded_ray_packet::<8>(&p8, 0, &mut PacketStack::new(), &mut blocked, &mut s8);
         let mut hits4 = [None; 4];
         let p4 = RayPacket::<VFloat<4>>::from_rays_masked(&rays[..4], mask);
-        accel.intersect_ray_packet::<4>(&p4, 0, &mut PacketStack::new(), &mut hits4, &mut s8);
+        accel.intersect_ray_packet::<4>(p4, 0, &mut PacketStack::new(), &mut hits4, &mut s8);
         assert_eq!(s8.rays, 2 * mask.count_ones() as u64 + (mask & 0xf).count_ones() as u64);
         for i in 0..8 {
             let mut s = TraceStats::default();
@@ -202,7 +202,7 @@ fn counters_are_deterministic_and_fallback_does_not_change_hits() {
             let mut h = [None; 8];
             let p = RayPacket::<VFloat<8>>::from_rays(chunk);
             accel.intersect_ray_packet::<8>(
-                &p,
+                p,
                 fallback,
                 &mut PacketStack::new(),
                 &mut h,

@@ -196,14 +196,15 @@ impl Accel {
     {
         let packet = RayPacket::<VFloat<W>>::from_rays(rays);
         let fallback = traverse_packet::default_fallback(W);
-        self.intersect_ray_packet::<W>(&packet, fallback, &mut PacketStack::new(), hits, stats);
+        self.intersect_ray_packet::<W>(packet, fallback, &mut PacketStack::new(), hits, stats);
     }
 
     /// Closest hits of a prepared packet; `hits[i]` answers lane `i` (`None` for inactive
-    /// lanes). `fallback`: subtrees entered by at most this many lanes finish ray by ray.
+    /// lanes). `fallback`: subtrees entered by at most this many lanes finish ray by ray. The
+    /// packet is taken by value (traversal shrinks its `t_max`), so no copy is made of it.
     pub fn intersect_ray_packet<const W: usize>(
         &self,
-        packet: &RayPacket<VFloat<W>>,
+        mut packet: RayPacket<VFloat<W>>,
         fallback: u32,
         stack: &mut PacketStack<VFloat<W>>,
         hits: &mut [Option<Hit>],
@@ -211,22 +212,7 @@ impl Accel {
     ) where
         Lanes<W>: LaneWidth,
     {
-        let mut p = *packet;
-        self.trace_packet::<W>(&mut p, fallback, stack, hits, stats);
-    }
-
-    /// `intersect_ray_packet` on a packet the caller no longer needs (its `t_max` shrinks to
-    /// the hits), which saves copying it.
-    fn trace_packet<const W: usize>(
-        &self,
-        p: &mut RayPacket<VFloat<W>>,
-        fallback: u32,
-        stack: &mut PacketStack<VFloat<W>>,
-        hits: &mut [Option<Hit>],
-        stats: &mut TraceStats,
-    ) where
-        Lanes<W>: LaneWidth,
-    {
+        let p = &mut packet;
         let active = p.active_bits();
         stats.rays += active.count_ones() as u64;
         let found =
@@ -317,8 +303,8 @@ impl Accel {
     {
         let mut stack = PacketStack::new();
         for (r, h) in rays.chunks(W).zip(hits.chunks_mut(W)) {
-            let mut packet = RayPacket::<VFloat<W>>::from_rays(r);
-            self.trace_packet::<W>(&mut packet, fallback, &mut stack, h, stats);
+            let packet = RayPacket::<VFloat<W>>::from_rays(r);
+            self.intersect_ray_packet::<W>(packet, fallback, &mut stack, h, stats);
         }
     }
 
