@@ -1,46 +1,57 @@
 //! Binned surface area heuristic (Wald 2007): centroids are binned along each axis, and the
 //! cheapest of the bin boundaries becomes the split. One pass over the primitives fills the
-//! bins of all three axes; the bins live on the stack.
+//! bins of all three axes; the bins live in a scratch buffer that the recursion reuses.
 
 use glam::Vec4;
+use wide::{f32x4, i32x4};
 
 use super::{Box4, BuildParams, PrimRef};
 
-/// Upper bound on `BuildParams::bins` (the size of the stack arrays).
+/// Upper bound on `BuildParams::bins` (the size of the scratch arrays).
 pub const MAX_BINS: usize = 16;
+const _: () = assert!(MAX_BINS.is_power_of_two());
 
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy)]
 pub struct Split {
     pub axis: usize,
     /// Primitives in bins `< bin` go left.
     pub bin: usize,
     /// Expected cost relative to one triangle test, comparable with a leaf's `count`.
     pub cost: f32,
+    /// Bounds of each side: the union of its bins, i.e. exactly the union of its primitives'
+    /// boxes, so the children need no pass of their own to find them.
+    pub left: Box4,
+    pub right: Box4,
     lo: f32,
     scale: f32,
-    bins: usize,
 }
 
 impl Split {
+    /// Whether a primitive goes left. Equivalent to `bin_index(..) < bin`: truncation towards
+    /// zero is below the integer `bin` exactly when the value is (and a negative or NaN value
+    /// saturates to bin 0, which is left too), so the float comparison alone decides.
     #[inline(always)]
-    fn bin_of(&self, c: Vec4) -> usize {
-        bin_index(c[self.axis], self.lo, self.scale, self.bins)
+    fn goes_left(&self, c: Vec4) -> bool {
+        !((c[self.axis] - self.lo) * self.scale >= self.bin as f32)
     }
 }
 
-#[inline(always)]
-fn bin_index(c: f32, lo: f32, scale: f32, bins: usize) -> usize {
-    // `as usize` saturates, so a rounding excursion below `lo` lands in bin 0.
-    (((c - lo) * scale) as usize).min(bins - 1)
+/// Entries of `Bins`: axis `a`, bin `k` is entry `a * MAX_BINS + k`. Room for a fourth axis
+/// makes it a power of two, so masking an index proves it in range to the compiler.
+const BIN_SLOTS: usize = 4 * MAX_BINS;
+
+/// The bins of all three axes. Reused from node to node so that a node only resets the bins it
+/// uses, instead of building a fresh array.
+pub struct Bins {
+    boxes: [Box4; BIN_SLOTS],
+    counts: [u32; BIN_SLOTS],
 }
 
-#[derive(Clone, Copy)]
-struct Bin {
-    bounds: Box4,
-    count: u32,
+impl Bins {
+    pub fn new() -> Box<Bins> {
+        Box::new(Bins { boxes: [Box4::EMPTY; BIN_SLOTS], counts: [0; BIN_SLOTS] })
+    }
 }
-
-const EMPTY_BIN: Bin = Bin { bounds: Box4::EMPTY, count: 0 };
 
 /// The cheapest bin boundary over all axes with nonzero centroid extent, if any. `centroids`
 /// bounds the primitives' `centroid2` (twice the centroid).
@@ -49,6 +60,7 @@ pub fn find_split(
     bounds: Box4,
     centroids: Box4,
     params: &BuildParams,
+    bins_buf: &mut Bins,
 ) -> Option<Split> {
     // A small node cannot fill many bins; fewer bins make its sweep cheaper.
     let bins = params.bins.min(prims.len().max(4));
@@ -62,58 +74,80 @@ pub fn find_split(
     let scale =
         Vec4::select(extent.cmpgt(Vec4::ZERO), bins as f32 * (1.0 - 1e-6) / extent, Vec4::ZERO);
 
-    let mut grid = [[EMPTY_BIN; MAX_BINS]; 3];
+    let Bins { boxes, counts } = bins_buf;
+    for axis in 0..3 {
+        let used = axis * MAX_BINS..axis * MAX_BINS + bins;
+        boxes[used.clone()].fill(Box4::EMPTY);
+        counts[used].fill(0);
+    }
+    // The bin of all three axes at once: clamping to [0, bins - 1] before truncating gives
+    // what truncating and then clamping gives (a NaN lane becomes 0, as `as usize` makes it),
+    // and the truncation is one vector instruction.
+    let top = Vec4::splat((bins - 1) as f32);
+    let axis_offset = i32x4::from([0, MAX_BINS as i32, 2 * MAX_BINS as i32, 0]);
     for p in prims {
-        let c = p.centroid2();
-        for axis in 0..3 {
-            let bin = &mut grid[axis][bin_index(c[axis], lo[axis], scale[axis], bins)];
-            bin.bounds = bin.bounds.grow(p);
-            bin.count += 1;
+        let t = ((p.centroid2() - lo) * scale).max(Vec4::ZERO).min(top);
+        let k = (f32x4::from(t.to_array()).fast_trunc_int() + axis_offset).to_array();
+        for &k in &k[..3] {
+            // The mask changes nothing (k < 3 * MAX_BINS); it drops the bounds checks.
+            let k = k as usize & (BIN_SLOTS - 1);
+            boxes[k] = boxes[k].grow(p);
+            counts[k] += 1;
         }
     }
 
     let parent_area = bounds.half_area().max(f32::MIN_POSITIVE);
-    let mut best: Option<Split> = None;
+    let mut best: Option<(usize, usize, f32)> = None;
     for axis in (0..3).filter(|&a| usable[a]) {
-        let grid = &grid[axis][..bins];
+        let boxes = &boxes[axis * MAX_BINS..axis * MAX_BINS + bins];
+        let counts = &counts[axis * MAX_BINS..axis * MAX_BINS + bins];
         // Sweep from the right to get the area and count of every right side.
         let mut right_area = [0.0f32; MAX_BINS];
         let mut right_count = [0u32; MAX_BINS];
         let (mut acc, mut n) = (Box4::EMPTY, 0u32);
         for k in (1..bins).rev() {
-            acc = acc.union(grid[k].bounds);
-            n += grid[k].count;
+            acc = acc.union(boxes[k]);
+            n += counts[k];
             right_area[k] = acc.half_area();
             right_count[k] = n;
         }
         let (mut acc, mut n) = (Box4::EMPTY, 0u32);
         for k in 1..bins {
-            acc = acc.union(grid[k - 1].bounds);
-            n += grid[k - 1].count;
+            acc = acc.union(boxes[k - 1]);
+            n += counts[k - 1];
             if n == 0 || right_count[k] == 0 {
                 continue;
             }
             let cost = params.traversal_cost
                 + (acc.half_area() * n as f32 + right_area[k] * right_count[k] as f32)
                     / parent_area;
-            if best.is_none_or(|s| cost < s.cost) {
-                best = Some(Split { axis, bin: k, cost, lo: lo[axis], scale: scale[axis], bins });
+            if best.is_none_or(|(_, _, c)| cost < c) {
+                best = Some((axis, k, cost));
             }
         }
     }
-    best
+    let (axis, bin, cost) = best?;
+    let boxes = &boxes[axis * MAX_BINS..axis * MAX_BINS + bins];
+    let left = boxes[..bin].iter().fold(Box4::EMPTY, |a, &b| a.union(b));
+    let right = boxes[bin..].iter().fold(Box4::EMPTY, |a, &b| a.union(b));
+    Some(Split { axis, bin, cost, left, right, lo: lo[axis], scale: scale[axis] })
 }
 
-/// Reorders `prims` so the split's left side comes first; returns its size.
-pub fn partition(prims: &mut [PrimRef], split: Split) -> usize {
+/// Reorders `prims` so the split's left side comes first; returns its size and the centroid
+/// bounds of both sides (which the children's splits need), gathered on the way.
+pub fn partition(prims: &mut [PrimRef], split: &Split) -> (usize, Box4, Box4) {
     let (mut i, mut j) = (0, prims.len());
+    let (mut left, mut right) = (Box4::EMPTY, Box4::EMPTY);
     while i < j {
-        if split.bin_of(prims[i].centroid2()) < split.bin {
+        let c = prims[i].centroid2();
+        if split.goes_left(c) {
+            left = left.grow_point(c);
             i += 1;
         } else {
+            right = right.grow_point(c);
             j -= 1;
             prims.swap(i, j);
         }
     }
-    i
+    (i, left, right)
 }

@@ -119,28 +119,49 @@ pub fn build(bounds: &[Aabb], params: BuildParams) -> BuiltBvh {
     assert!(params.bins >= 2 && params.bins <= binned_sah::MAX_BINS, "bins out of range");
     let mut prims: Vec<PrimRef> =
         bounds.iter().enumerate().map(|(i, b)| PrimRef::new(b, i as u32)).collect();
-    let mut nodes = Vec::with_capacity(bounds.len().max(1));
-    build_node(&mut nodes, &mut prims, 0, 0, &params);
-    // The reservation is a guess; give back the rest so the memory the benchmark reports is
-    // what traversal uses.
+    let (root_bounds, root_centroids) = bounds_of(&prims);
+    // A binary tree over n primitives has at most 2n - 1 nodes, so the array never grows (and
+    // is never copied) during the build.
+    let mut nodes = Vec::with_capacity((2 * bounds.len()).max(1));
+    let mut bins = binned_sah::Bins::new();
+    let node = Node { bounds: root_bounds, centroids: root_centroids, first: 0, depth: 0 };
+    build_node(&mut nodes, &mut prims, node, &params, &mut bins);
+    // Give back the rest of the reservation so the memory the benchmark reports is what
+    // traversal uses (shrinking a large block in place does not copy it).
     nodes.shrink_to_fit();
     BuiltBvh { nodes, order: prims.iter().map(PrimRef::index).collect() }
 }
 
-/// Appends the subtree over `prims` (which start at primitive `first` of the final order) to
-/// `nodes` in depth-first order and returns its root's index in `nodes`.
+/// The box and the centroid (`centroid2`) box of `prims`.
+fn bounds_of(prims: &[PrimRef]) -> (Box4, Box4) {
+    prims
+        .iter()
+        .fold((Box4::EMPTY, Box4::EMPTY), |(b, c), p| (b.grow(p), c.grow_point(p.centroid2())))
+}
+
+/// What a node knows before it is built: its bounds, which its parent's split found, and
+/// where it sits.
+#[derive(Clone, Copy)]
+struct Node {
+    bounds: Box4,
+    centroids: Box4,
+    /// Its first primitive's position in the final order.
+    first: usize,
+    depth: usize,
+}
+
+/// Appends the subtree over `prims` to `nodes` in depth-first order and returns its root's
+/// index in `nodes`.
 fn build_node(
     nodes: &mut Vec<BvhNode>,
     prims: &mut [PrimRef],
-    first: usize,
-    depth: usize,
+    node: Node,
     params: &BuildParams,
+    bins: &mut binned_sah::Bins,
 ) -> u32 {
+    let Node { bounds, centroids, first, depth } = node;
     let index = nodes.len();
     let count = prims.len();
-    let (bounds, centroids) = prims
-        .iter()
-        .fold((Box4::EMPTY, Box4::EMPTY), |(b, c), p| (b.grow(p), c.grow_point(p.centroid2())));
     let aabb = bounds.aabb();
     let (min, max) =
         if aabb.is_empty() { ([0.0; 3], [0.0; 3]) } else { (aabb.min.into(), aabb.max.into()) };
@@ -151,38 +172,59 @@ fn build_node(
 
     let small = count <= params.max_leaf;
     let split = if depth < SAH_DEPTH_LIMIT {
-        binned_sah::find_split(prims, bounds, centroids, params)
+        binned_sah::find_split(prims, bounds, centroids, params, bins)
     } else {
         None
     };
-    let left_count = match split {
-        Some(s) if !small || s.cost < count as f32 => binned_sah::partition(prims, s),
+    let (left_count, left_node, right_node) = match split {
+        Some(s) if !small || s.cost < count as f32 => {
+            let (left_count, left_centroids, right_centroids) = binned_sah::partition(prims, &s);
+            // Both sides of a split hold primitives: the bins that the split was chosen from
+            // count the same primitives as the partition.
+            debug_assert!(left_count > 0 && left_count < count);
+            let left = Node { bounds: s.left, centroids: left_centroids, first, depth: depth + 1 };
+            let right = Node {
+                bounds: s.right,
+                centroids: right_centroids,
+                first: first + left_count,
+                depth: depth + 1,
+            };
+            (left_count, left, right)
+        }
         Some(_) => return index as u32, // a leaf is cheaper
         None if small => return index as u32,
         // Too many primitives to leave and no useful split (all centroids equal, or too
         // deep): halve the range. Leaves stay small and the recursion ends.
-        None => count / 2,
+        None => {
+            let half = count / 2;
+            let side = |prims: &[PrimRef], first: usize| {
+                let (bounds, centroids) = bounds_of(prims);
+                Node { bounds, centroids, first, depth: depth + 1 }
+            };
+            (half, side(&prims[..half], first), side(&prims[half..], first + half))
+        }
     };
-    let left_count = if left_count == 0 || left_count == count { count / 2 } else { left_count };
     let (left, right) = prims.split_at_mut(left_count);
 
     let right_index = if count >= PARALLEL_MIN {
         // Both halves into their own vectors at once, then appended: the left subtree right
         // after this node, the right one after it, interior links shifted by where each lands.
-        let build_alone = |prims: &mut [PrimRef], first: usize| {
-            let mut sub = Vec::with_capacity(prims.len() / 2);
-            build_node(&mut sub, prims, first, depth + 1, params);
+        let build_alone = |prims: &mut [PrimRef], node: Node, bins: &mut binned_sah::Bins| {
+            let mut sub = Vec::with_capacity(2 * prims.len());
+            build_node(&mut sub, prims, node, params, bins);
             sub
         };
-        let (l, r) =
-            rayon::join(|| build_alone(left, first), || build_alone(right, first + left_count));
+        let (l, r) = rayon::join(
+            || build_alone(left, left_node, bins),
+            || build_alone(right, right_node, &mut binned_sah::Bins::new()),
+        );
         append_shifted(nodes, &l);
         let right_index = nodes.len() as u32;
         append_shifted(nodes, &r);
         right_index
     } else {
-        build_node(nodes, left, first, depth + 1, params);
-        build_node(nodes, right, first + left_count, depth + 1, params)
+        build_node(nodes, left, left_node, params, bins);
+        build_node(nodes, right, right_node, params, bins)
     };
     nodes[index].index = right_index;
     nodes[index].count = 0;
