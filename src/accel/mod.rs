@@ -16,6 +16,8 @@ pub mod wide_node;
 
 use std::time::{Duration, Instant};
 
+use rayon::prelude::*;
+
 use crate::geometry::sphere::intersect_sphere;
 use crate::geometry::TriangleSoa;
 use crate::math::{Aabb, Hit, Ray};
@@ -94,23 +96,27 @@ impl Accel {
 
     pub fn build_with(scene: &Scene, kind: AccelKind, params: BuildParams) -> Accel {
         let t0 = Instant::now();
-        let corners: Vec<[glam::Vec3; 3]> =
-            (0..scene.triangles.len()).map(|i| scene.triangle(i)).collect();
+        // Triangle boxes straight from the indexed mesh, in parallel (in the caller's rayon
+        // pool); the corners are read again, in leaf order, for the SoA store.
+        let boxes: Vec<Aabb> = (0..scene.triangles.len())
+            .into_par_iter()
+            .map(|i| Aabb::from_points(&scene.triangle(i)))
+            .collect();
         let (nodes, order) = match kind {
             AccelKind::Bvh => {
-                let boxes: Vec<Aabb> = corners.iter().map(|c| Aabb::from_points(c)).collect();
                 let built = build::build(&boxes, params);
                 (built.nodes, built.order)
             }
             AccelKind::BruteForce => {
-                let b = corners.iter().fold(Aabb::EMPTY, |b, c| b.union(Aabb::from_points(c)));
+                let b = boxes.iter().fold(Aabb::EMPTY, |b, &t| b.union(t));
                 let (min, max) =
                     if b.is_empty() { ([0.0; 3], [0.0; 3]) } else { (b.min.into(), b.max.into()) };
-                let n = corners.len() as u32;
+                let n = boxes.len() as u32;
                 (vec![BvhNode { min, index: 0, max, count: n }], (0..n).collect())
             }
         };
-        let tris = TriangleSoa::from_order(&corners, &order);
+        drop(boxes);
+        let tris = TriangleSoa::from_order(|i| scene.triangle(i), &order);
         let nodes = if tris.is_empty() { Vec::new() } else { nodes };
         let mut wide_nodes = build::collapse(&nodes, WIDE_LEAF);
         wide_nodes.shrink_to_fit();

@@ -23,8 +23,8 @@ pub struct TriangleSoa {
 }
 
 impl TriangleSoa {
-    /// Stores `triangles` in the order given by `order` (indices into `triangles`).
-    pub fn from_order(triangles: &[[Vec3; 3]], order: &[u32]) -> TriangleSoa {
+    /// Stores the triangles `corners(i)` for `i` in `order`, in that order.
+    pub fn from_order(corners: impl Fn(usize) -> [Vec3; 3], order: &[u32]) -> TriangleSoa {
         let n = order.len() + LANES;
         let mut s = TriangleSoa {
             v0: std::array::from_fn(|_| Vec::with_capacity(n)),
@@ -33,7 +33,7 @@ impl TriangleSoa {
             prim: order.to_vec(),
         };
         for &i in order {
-            let [a, b, c] = triangles[i as usize];
+            let [a, b, c] = corners(i as usize);
             s.push(a, b - a, c - a);
         }
         for _ in 0..LANES {
