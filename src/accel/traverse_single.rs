@@ -112,7 +112,13 @@ impl Entry {
     }
 }
 
-/// Starts loading the entered interior children of `n` (mask `bits`), both cache lines each.
+/// Starts loading the entered interior children of `n` (mask `bits`), both cache lines each,
+/// while the current node's children are sorted and the nearest visited: on the 1M-triangle
+/// tori scene most nodes below the top levels miss the caches, and a pushed child would
+/// otherwise be loaded only when popped. Measured (PERF.md, "Large scenes"): +7 % diffuse and
+/// +8 % primary rays per second there, no change on the course scenes. Prefetching the
+/// entered leaves' triangle columns as well was within the noise for closest hits and cost
+/// ~10 % for course-scene shadow rays (an any-hit ray enters many leaves it never tests).
 #[inline(always)]
 fn prefetch_children(nodes: &[Bvh4Node], n: &Bvh4Node, mut bits: u32) {
     use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
