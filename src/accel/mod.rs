@@ -7,6 +7,7 @@
 //! spheres, so they are a short list tested after the triangles rather than BVH primitives.
 
 pub mod build;
+mod hugepage;
 mod leaf;
 pub mod node;
 pub mod packet;
@@ -120,6 +121,11 @@ impl Accel {
         let nodes = if tris.is_empty() { Vec::new() } else { nodes };
         let mut wide_nodes = build::collapse(&nodes, WIDE_LEAF);
         wide_nodes.shrink_to_fit();
+        hugepage::advise(&wide_nodes);
+        for col in tris.v0.iter().chain(&tris.e1).chain(&tris.e2) {
+            hugepage::advise(col);
+        }
+        hugepage::advise(&tris.prim);
         Accel {
             wide_nodes,
             tris,

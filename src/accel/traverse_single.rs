@@ -112,6 +112,32 @@ impl Entry {
     }
 }
 
+/// Starts loading the entered interior children of `n` (mask `bits`), both cache lines each,
+/// while the current node's children are sorted and the nearest visited: on the 1M-triangle
+/// tori scene most nodes below the top levels miss the caches, and a pushed child would
+/// otherwise be loaded only when popped. Measured (PERF.md, "Large scenes"): +7 % diffuse and
+/// +8 % primary rays per second there, no change on the course scenes. Prefetching the
+/// entered leaves' triangle columns as well was within the noise for closest hits and cost
+/// ~10 % for course-scene shadow rays (an any-hit ray enters many leaves it never tests).
+#[inline(always)]
+fn prefetch_children(nodes: &[Bvh4Node], n: &Bvh4Node, mut bits: u32) {
+    use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+    while bits != 0 {
+        let i = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        let c = n.child[i];
+        if c & LEAF_BIT == 0 {
+            let p = nodes.as_ptr().wrapping_add(c as usize) as *const i8;
+            // SAFETY: a prefetch is a hint that never faults or reads into the program, whatever
+            // the address; `sse` is part of the x86_64 baseline.
+            unsafe {
+                _mm_prefetch::<_MM_HINT_T0>(p);
+                _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
+            }
+        }
+    }
+}
+
 /// Orders two entries so the farther comes first.
 #[inline(always)]
 fn far_first(x: &mut Entry, y: &mut Entry) {
@@ -159,6 +185,7 @@ pub fn intersect_subtree(
             if bits == 0 {
                 break;
             }
+            prefetch_children(nodes, n, bits);
             let t = t_near.to_array();
             let entry = |i: usize| Entry { child: n.child[i], count: n.count[i], t: t[i] };
             let a = bits.trailing_zeros() as usize;
@@ -250,6 +277,7 @@ pub fn occluded_subtree(
             if bits == 0 {
                 break;
             }
+            prefetch_children(nodes, n, bits);
             let t = t_near.to_array();
             let mut a = bits.trailing_zeros() as usize;
             bits &= bits - 1;
