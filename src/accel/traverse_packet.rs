@@ -361,27 +361,16 @@ pub fn occluded<V: SimdF32>(
         if lanes != 0 {
             let (child, count) = (cur.0, cur.1);
             if lanes.count_ones() <= fallback {
-                let mut bits = lanes;
-                while bits != 0 {
-                    let i = bits.trailing_zeros() as usize;
-                    bits &= bits - 1;
-                    let start = SingleEntry { child, count, t: 0.0 };
-                    let ray = p.ray(i);
-                    if traverse_single::occluded_subtree(nodes, tris, start, &ray, stats) {
-                        blocked |= 1 << i;
-                    }
-                }
+                let start = SingleEntry { child, count, t: 0.0 };
+                blocked |= blocked_lane_by_lane(lanes, p, |ray| {
+                    traverse_single::occluded_subtree(nodes, tris, start, ray, stats)
+                });
             } else if child & LEAF_BIT != 0 {
                 let (first, count) = ((child & !LEAF_BIT) as usize, count as usize);
                 if leaf_by_lane(lanes, count) {
-                    let mut bits = lanes;
-                    while bits != 0 {
-                        let i = bits.trailing_zeros() as usize;
-                        bits &= bits - 1;
-                        if leaf::occluded_leaf(tris, first, count, &p.ray(i), stats) {
-                            blocked |= 1 << i;
-                        }
-                    }
+                    blocked |= blocked_lane_by_lane(lanes, p, |ray| {
+                        leaf::occluded_leaf(tris, first, count, ray, stats)
+                    });
                 } else {
                     blocked |= occluded_leaf(tris, first, count, lanes, p, stats);
                 }
@@ -405,6 +394,24 @@ pub fn occluded<V: SimdF32>(
             None => return blocked,
         }
     }
+}
+
+/// The lanes of `lanes` whose ray, traced alone, `blocks` says is blocked.
+#[inline(always)]
+fn blocked_lane_by_lane<V: SimdF32>(
+    lanes: u32,
+    p: &RayPacket<V>,
+    mut blocks: impl FnMut(&Ray) -> bool,
+) -> u32 {
+    let (mut bits, mut blocked) = (lanes, 0);
+    while bits != 0 {
+        let i = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        if blocks(&p.ray(i)) {
+            blocked |= 1 << i;
+        }
+    }
+    blocked
 }
 
 /// The lanes of `lanes` that a triangle of the leaf blocks; a lane stops testing once blocked.
