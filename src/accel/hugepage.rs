@@ -7,7 +7,7 @@
 //! `madvise` mode, so the arrays ask for 2 MiB pages explicitly. Measured (PERF.md, "Large
 //! scenes").
 
-/// Asks the kernel to back the memory of `v` (its whole capacity) with 2 MiB pages, and to
+/// Asks the kernel to back the memory of `v` (its elements) with 2 MiB pages, and to
 /// collapse the pages already touched into huge pages now. Best effort: any error (an old
 /// kernel without `MADV_COLLAPSE`, THP disabled, not Linux) leaves the memory as it was.
 ///
@@ -16,8 +16,8 @@
 /// only changes how the process's own mapped memory is backed, never its contents, so
 /// neighbouring allocations in the same huge page are unaffected; unmapped parts of the
 /// widened range make the call fail for them alone.
-pub fn advise<T>(v: &Vec<T>) {
-    let bytes = v.capacity() * std::mem::size_of::<T>();
+pub fn advise<T>(v: &[T]) {
+    let bytes = std::mem::size_of_val(v);
     if bytes < HUGE / 2 {
         return; // small arrays sit in a few cache-resident pages anyway
     }

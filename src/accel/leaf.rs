@@ -1,5 +1,5 @@
 //! One ray against the triangles of a leaf, 8 at a time (the 8-wide Möller-Trumbore test over
-//! the SoA columns).
+//! a triangle block's rows).
 //!
 //! Hits in front of the leaf box. Möller-Trumbore's rounding margin (`moller_trumbore`)
 //! accepts hits a few ulps outside a triangle, so a hit can lie in front of its own leaf box.
@@ -16,25 +16,39 @@ use wide::f32x8;
 use super::packet::BOX_INFLATE;
 use super::TraceStats;
 use crate::geometry::moller_trumbore::{intersect_simd, splat3, V3};
-use crate::geometry::triangles::{TriangleSoa, LANES};
+use crate::geometry::triangles::{TriangleBlock, TriangleSoa, LANES};
 use crate::math::{Hit, Ray};
 
-/// Lane mask for the first `n` lanes.
-#[inline(always)]
-fn first_lanes(n: usize) -> f32x8 {
-    const ON: f32 = f32::from_bits(!0);
-    f32x8::new(std::array::from_fn(|i| if i < n { ON } else { 0.0 }))
-}
+/// Every lane on: the lanes outside the leaf are masked off after the test instead.
+const ALL: f32x8 = f32x8::new([f32::from_bits(!0); LANES]);
 
 #[inline(always)]
-fn load8(col: &[f32], at: usize) -> f32x8 {
-    let a: [f32; LANES] = col[at..at + LANES].try_into().expect("columns are padded by LANES");
-    f32x8::new(a)
+fn rows(r: &[[f32; LANES]; 3]) -> V3<f32x8> {
+    V3 { x: f32x8::new(r[0]), y: f32x8::new(r[1]), z: f32x8::new(r[2]) }
 }
 
+/// Calls `test(block, lanes)` for each block the slots `first .. first + count` occupy, with
+/// the bit mask of their lanes in it, until it returns true; returns whether one did. A leaf
+/// of at most `LANES` triangles lies in one block (`build::pack_leaves`).
 #[inline(always)]
-fn load3(cols: &[Vec<f32>; 3], at: usize) -> V3<f32x8> {
-    V3 { x: load8(&cols[0], at), y: load8(&cols[1], at), z: load8(&cols[2], at) }
+fn leaf_blocks(
+    tris: &TriangleSoa,
+    first: usize,
+    count: usize,
+    mut test: impl FnMut(&TriangleBlock, u32) -> bool,
+) -> bool {
+    let end = first + count;
+    let mut at = first;
+    while at < end {
+        let b = at / LANES;
+        let (lo, hi) = (at % LANES, (end - b * LANES).min(LANES));
+        let lanes = ((1u32 << hi) - 1) & !((1u32 << lo) - 1);
+        if test(&tris.blocks()[b], lanes) {
+            return true;
+        }
+        at = (b + 1) * LANES;
+    }
+    false
 }
 
 /// Tests the leaf's triangles `first .. first + count`, which the ray entered at distance
@@ -54,29 +68,28 @@ pub(super) fn intersect_leaf(
     let (o, d) = (splat3(ray.origin), splat3(ray.dir));
     let near_v = f32x8::splat(near);
     stats.triangle_tests += count as u64;
-    for at in (first..first + count).step_by(LANES) {
-        let valid = first_lanes(first + count - at);
+    leaf_blocks(tris, first, count, |block, lanes| {
         let (mask, t, u, v) = intersect_simd(
             o,
             d,
-            load3(&tris.v0, at),
-            load3(&tris.e1, at),
-            load3(&tris.e2, at),
+            rows(&block.v0),
+            rows(&block.e1),
+            rows(&block.e2),
             f32x8::splat(ray.t_min),
             f32x8::splat(ray.t_max),
-            valid,
+            ALL,
         );
-        let mut bits = mask.to_bitmask();
+        let mut bits = mask.to_bitmask() & lanes;
         if bits == 0 {
-            continue;
+            return false;
         }
         // Hits in front of the leaf box do not count (module comment).
         bits &= (t * f32x8::splat(BOX_INFLATE)).simd_ge(near_v).to_bitmask();
         if bits == 0 {
-            continue;
+            return false;
         }
         let ts = t.to_array();
-        let prims = &tris.prim[at..];
+        let prims = &block.prim;
         let mut k = bits.trailing_zeros() as usize;
         for lane in k + 1..LANES {
             if bits & (1 << lane) != 0
@@ -87,12 +100,13 @@ pub(super) fn intersect_leaf(
         }
         if let Some(b) = best {
             if ts[k] == b.t && prims[k] > b.prim {
-                continue;
+                return false;
             }
         }
         ray.t_max = ts[k];
         *best = Some(Hit { t: ts[k], u: u.to_array()[k], v: v.to_array()[k], prim: prims[k] });
-    }
+        false
+    });
 }
 
 /// Whether any of the leaf's triangles `first .. first + count` blocks the ray. (Occlusion
@@ -108,22 +122,18 @@ pub(super) fn occluded_leaf(
 ) -> bool {
     let (o, d) = (splat3(ray.origin), splat3(ray.dir));
     let (t_min, t_max) = (f32x8::splat(ray.t_min), f32x8::splat(ray.t_max));
-    for at in (first..first + count).step_by(LANES) {
-        stats.triangle_tests += (first + count - at).min(LANES) as u64;
-        let valid = first_lanes(first + count - at);
+    leaf_blocks(tris, first, count, |block, lanes| {
+        stats.triangle_tests += lanes.count_ones() as u64;
         let (mask, ..) = intersect_simd(
             o,
             d,
-            load3(&tris.v0, at),
-            load3(&tris.e1, at),
-            load3(&tris.e2, at),
+            rows(&block.v0),
+            rows(&block.e1),
+            rows(&block.e2),
             t_min,
             t_max,
-            valid,
+            ALL,
         );
-        if mask.to_bitmask() != 0 {
-            return true;
-        }
-    }
-    false
+        mask.to_bitmask() & lanes != 0
+    })
 }

@@ -1,9 +1,9 @@
 //! Acceleration structure: the public surface every stage uses.
 //!
-//! Triangles live in SoA columns in leaf order under one flat 4-wide BVH (128-byte nodes, one
+//! Triangles live in SoA blocks of eight in leaf order under one flat 4-wide BVH (128-byte nodes, one
 //! SIMD test for four boxes), collapsed from a binned-SAH binary BVH that is dropped once
 //! collapsed. Single rays and packets traverse the same wide tree, so the structure is the
-//! wide nodes plus the triangle columns. The course scenes hold at most a handful of analytic
+//! wide nodes plus the triangle blocks. The course scenes hold at most a handful of analytic
 //! spheres, so they are a short list tested after the triangles rather than BVH primitives.
 
 pub mod build;
@@ -117,15 +117,14 @@ impl Accel {
             }
         };
         drop(boxes);
-        let tris = TriangleSoa::from_order(|i| scene.triangle(i), &order);
-        let nodes = if tris.is_empty() { Vec::new() } else { nodes };
+        let nodes = if order.is_empty() { Vec::new() } else { nodes };
         let mut wide_nodes = build::collapse(&nodes, WIDE_LEAF);
+        drop(nodes);
         wide_nodes.shrink_to_fit();
+        let slots = build::pack_leaves(&mut wide_nodes, &order);
+        let tris = TriangleSoa::from_slots(|i| scene.triangle(i), &slots);
         hugepage::advise(&wide_nodes);
-        for col in tris.v0.iter().chain(&tris.e1).chain(&tris.e2) {
-            hugepage::advise(col);
-        }
-        hugepage::advise(&tris.prim);
+        hugepage::advise(tris.blocks());
         Accel {
             wide_nodes,
             tris,
@@ -152,7 +151,7 @@ impl Accel {
         &self.wide_nodes
     }
 
-    /// Bytes held by the structure: the wide nodes plus the triangle columns.
+    /// Bytes held by the structure: the wide nodes plus the triangle blocks.
     pub fn memory_bytes(&self) -> usize {
         self.wide_nodes.capacity() * std::mem::size_of::<Bvh4Node>() + self.tris.memory_bytes()
     }

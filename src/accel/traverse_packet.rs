@@ -20,7 +20,7 @@ use super::packet::{PacketHits, RayPacket, BOX_INFLATE, MAX_W};
 use super::traverse_single::{self, Entry as SingleEntry};
 use super::wide_node::{Bvh4Node, EMPTY, LEAF_BIT};
 use super::TraceStats;
-use crate::geometry::moller_trumbore::{intersect_simd, V3};
+use crate::geometry::moller_trumbore::{intersect_simd, splat3, V3};
 use crate::geometry::triangles::{TriangleSoa, LANES};
 use crate::math::{Hit, Ray};
 use crate::simd::SimdF32;
@@ -68,9 +68,10 @@ fn slab<V: SimdF32>(p: &RayPacket<V>, min: [f32; 3], max: [f32; 3], t_max: V) ->
     (near.simd_le(far), near)
 }
 
+/// (v0, e1, e2) of slot `i`, each broadcast to every lane.
 #[inline(always)]
-fn splat_tri<V: SimdF32>(cols: &[Vec<f32>; 3], i: usize) -> V3<V> {
-    V3 { x: V::splat(cols[0][i]), y: V::splat(cols[1][i]), z: V::splat(cols[2][i]) }
+fn splat_tri<V: SimdF32>(tris: &TriangleSoa, i: usize) -> [V3<V>; 3] {
+    tris.vertex_edges(i).map(splat3)
 }
 
 /// One stack entry: a subtree (a child reference and its leaf count, as in `Bvh4Node`), the
@@ -287,23 +288,15 @@ fn intersect_leaf<V: SimdF32>(
     let valid = V::from_bitmask(lanes);
     let inflate = V::splat(BOX_INFLATE);
     for i in first..first + count {
-        let (mask, t, u, v) = intersect_simd(
-            p.origin,
-            p.dir,
-            splat_tri(&tris.v0, i),
-            splat_tri(&tris.e1, i),
-            splat_tri(&tris.e2, i),
-            p.t_min,
-            p.t_max,
-            valid,
-        );
+        let [v0, e1, e2] = splat_tri(tris, i);
+        let (mask, t, u, v) = intersect_simd(p.origin, p.dir, v0, e1, e2, p.t_min, p.t_max, valid);
         // Hits in front of the leaf box do not count (`leaf`).
         let mask = mask & (t * inflate).simd_ge(near);
         let take = mask.bitmask();
         if take == 0 {
             continue;
         }
-        let prim = tris.prim[i];
+        let prim = tris.prim(i);
         // Equal distance: the smaller prim wins (as in the single-ray leaf test). Rare, so
         // handled lane by lane off the fast path.
         let ties = take & t.simd_eq(p.t_max).bitmask() & hits.hit_bits;
@@ -427,16 +420,9 @@ fn occluded_leaf<V: SimdF32>(
     let mut open = lanes;
     for i in first..first + count {
         stats.triangle_tests += open.count_ones() as u64;
-        let (mask, ..) = intersect_simd(
-            p.origin,
-            p.dir,
-            splat_tri(&tris.v0, i),
-            splat_tri(&tris.e1, i),
-            splat_tri(&tris.e2, i),
-            p.t_min,
-            p.t_max,
-            V::from_bitmask(open),
-        );
+        let [v0, e1, e2] = splat_tri(tris, i);
+        let (mask, ..) =
+            intersect_simd(p.origin, p.dir, v0, e1, e2, p.t_min, p.t_max, V::from_bitmask(open));
         open &= !mask.bitmask();
         if open == 0 {
             break;

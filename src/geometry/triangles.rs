@@ -1,81 +1,143 @@
-//! Triangles in structure-of-arrays layout, in BVH leaf order.
+//! Triangles in SoA blocks of eight (AoSoA), in BVH leaf order.
 //!
 //! Each triangle is stored as its first vertex and its two edges (v0, e1 = v1 - v0,
-//! e2 = v2 - v0), nine f32 columns. Möller-Trumbore needs exactly these, so a leaf test loads
-//! nine contiguous 8-wide vectors and does no subtraction per ray. The alternative, three
-//! vertex columns, costs six subtractions per triangle per ray; edges also keep the test
-//! identical whether one ray meets eight triangles or eight rays meet one.
-//! Columns are padded with `LANES` degenerate (all-zero) triangles so an 8-wide load at any
-//! leaf start stays in bounds; a zero triangle has det = 0 and never hits.
+//! e2 = v2 - v0). Möller-Trumbore needs exactly these, so a leaf test loads nine 8-wide
+//! vectors and does no subtraction per ray. The alternative, three vertex columns, costs six
+//! subtractions per triangle per ray; edges also keep the test identical whether one ray meets
+//! eight triangles or eight rays meet one.
+//!
+//! Why blocks: a block holds the nine 8-lane component rows and the eight scene indices of
+//! eight slots in 320 contiguous, 64-byte-aligned bytes (five cache lines). A leaf lies inside
+//! one block (the build packs leaves so, `accel::build::pack_leaves`), so one leaf test reads
+//! five neighbouring lines. With nine separate columns it read nine to eighteen lines from
+//! nine places in memory, which is what incoherent rays pay for most (PERF.md, "Triangle
+//! blocks"). Slots no leaf uses are degenerate all-zero triangles: det = 0, never a hit.
 
 use glam::Vec3;
 
-/// Lanes of the widest SIMD triangle test.
+/// Lanes of the widest SIMD triangle test, and slots per block.
 pub const LANES: usize = 8;
 
+/// `prim` of a slot that holds no triangle.
+pub const NO_PRIM: u32 = u32::MAX;
+
+/// Eight triangle slots, one SIMD lane each: rows are [x, y, z] of v0, e1 and e2.
+#[repr(C, align(64))]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TriangleBlock {
+    pub v0: [[f32; LANES]; 3],
+    pub e1: [[f32; LANES]; 3],
+    pub e2: [[f32; LANES]; 3],
+    /// Scene triangle index of each slot (`NO_PRIM` for an unused slot).
+    pub prim: [u32; LANES],
+}
+
+const _: () = assert!(std::mem::size_of::<TriangleBlock>() == 320);
+
+impl TriangleBlock {
+    const EMPTY: TriangleBlock = TriangleBlock {
+        v0: [[0.0; LANES]; 3],
+        e1: [[0.0; LANES]; 3],
+        e2: [[0.0; LANES]; 3],
+        prim: [NO_PRIM; LANES],
+    };
+}
+
+/// The triangle store. Slot `i` is lane `i % LANES` of block `i / LANES`; BVH leaves name
+/// ranges of slots.
 #[derive(Debug, Clone, Default)]
 pub struct TriangleSoa {
-    pub v0: [Vec<f32>; 3],
-    pub e1: [Vec<f32>; 3],
-    pub e2: [Vec<f32>; 3],
-    /// Original scene triangle index of each stored triangle.
-    pub prim: Vec<u32>,
+    blocks: Vec<TriangleBlock>,
+    len: usize,
 }
 
 impl TriangleSoa {
-    /// Stores the triangles `corners(i)` for `i` in `order`, in that order.
-    pub fn from_order(corners: impl Fn(usize) -> [Vec3; 3], order: &[u32]) -> TriangleSoa {
-        let n = order.len() + LANES;
-        let mut s = TriangleSoa {
-            v0: std::array::from_fn(|_| Vec::with_capacity(n)),
-            e1: std::array::from_fn(|_| Vec::with_capacity(n)),
-            e2: std::array::from_fn(|_| Vec::with_capacity(n)),
-            prim: order.to_vec(),
-        };
-        for &i in order {
-            let [a, b, c] = corners(i as usize);
-            s.push(a, b - a, c - a);
+    /// Stores triangle `corners(p)` in slot `i` for every `p = slots[i]` other than
+    /// `NO_PRIM`; the other slots stay empty.
+    pub fn from_slots(corners: impl Fn(usize) -> [Vec3; 3], slots: &[u32]) -> TriangleSoa {
+        let mut blocks = vec![TriangleBlock::EMPTY; slots.len().div_ceil(LANES)];
+        let mut len = 0;
+        for (i, &p) in slots.iter().enumerate() {
+            if p == NO_PRIM {
+                continue;
+            }
+            let [a, b, c] = corners(p as usize);
+            let (block, lane) = (&mut blocks[i / LANES], i % LANES);
+            for (row, v) in [(&mut block.v0, a), (&mut block.e1, b - a), (&mut block.e2, c - a)] {
+                for k in 0..3 {
+                    row[k][lane] = v[k];
+                }
+            }
+            block.prim[lane] = p;
+            len += 1;
         }
-        for _ in 0..LANES {
-            s.push(Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
-        }
-        s
+        TriangleSoa { blocks, len }
     }
 
-    fn push(&mut self, v0: Vec3, e1: Vec3, e2: Vec3) {
-        for k in 0..3 {
-            self.v0[k].push(v0[k]);
-            self.e1[k].push(e1[k]);
-            self.e2[k].push(e2[k]);
-        }
-    }
-
-    /// Number of real (unpadded) triangles.
+    /// Number of stored triangles (used slots).
     pub fn len(&self) -> usize {
-        self.prim.len()
+        self.len
     }
 
     pub fn is_empty(&self) -> bool {
-        self.prim.is_empty()
+        self.len == 0
     }
 
-    #[inline]
-    pub fn v0(&self, i: usize) -> Vec3 {
-        Vec3::new(self.v0[0][i], self.v0[1][i], self.v0[2][i])
+    /// The blocks, for leaf tests and for `madvise`.
+    #[inline(always)]
+    pub fn blocks(&self) -> &[TriangleBlock] {
+        &self.blocks
     }
 
-    #[inline]
-    pub fn e1(&self, i: usize) -> Vec3 {
-        Vec3::new(self.e1[0][i], self.e1[1][i], self.e1[2][i])
+    /// The block holding slot `i`, and the slot's lane in it.
+    #[inline(always)]
+    pub fn slot(&self, i: usize) -> (&TriangleBlock, usize) {
+        (&self.blocks[i / LANES], i % LANES)
     }
 
-    #[inline]
-    pub fn e2(&self, i: usize) -> Vec3 {
-        Vec3::new(self.e2[0][i], self.e2[1][i], self.e2[2][i])
+    /// (v0, e1, e2) of slot `i`.
+    #[inline(always)]
+    pub fn vertex_edges(&self, i: usize) -> [Vec3; 3] {
+        let (b, l) = self.slot(i);
+        let get = |row: &[[f32; LANES]; 3]| Vec3::new(row[0][l], row[1][l], row[2][l]);
+        [get(&b.v0), get(&b.e1), get(&b.e2)]
     }
 
-    /// Heap bytes of the columns.
+    /// Scene triangle index of slot `i`.
+    #[inline(always)]
+    pub fn prim(&self, i: usize) -> u32 {
+        self.slot(i).0.prim[i % LANES]
+    }
+
+    /// Heap bytes of the blocks.
     pub fn memory_bytes(&self) -> usize {
-        9 * self.v0[0].capacity() * 4 + self.prim.capacity() * 4
+        self.blocks.capacity() * std::mem::size_of::<TriangleBlock>()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Slots map to (block, lane) in order, gaps stay empty, and edges are stored.
+    #[test]
+    fn slots_fill_blocks_in_order() {
+        let corners = |p: usize| {
+            let a = Vec3::splat(p as f32);
+            [a, a + Vec3::X, a + Vec3::Y]
+        };
+        let mut slots = vec![NO_PRIM; 16];
+        slots[3] = 7;
+        slots[9] = 2;
+        let t = TriangleSoa::from_slots(corners, &slots);
+        assert_eq!(t.len(), 2);
+        assert_eq!(t.blocks().len(), 2);
+        assert_eq!(t.prim(3), 7);
+        assert_eq!(t.prim(9), 2);
+        assert_eq!(t.prim(4), NO_PRIM);
+        assert_eq!(t.vertex_edges(3), [Vec3::splat(7.0), Vec3::X, Vec3::Y]);
+        assert_eq!(t.vertex_edges(9)[0], Vec3::splat(2.0));
+        assert_eq!(t.vertex_edges(8), [Vec3::ZERO; 3]);
+        assert_eq!(t.memory_bytes(), 640);
     }
 }

@@ -1,5 +1,6 @@
 //! BVH construction: a binned SAH build straight into the flat depth-first node array, and
-//! its collapse into the 4-wide tree that single rays traverse (`collapse`).
+//! its collapse into the 4-wide tree that rays traverse (`collapse`), whose leaves are then
+//! placed in triangle blocks (`pack`).
 //!
 //! Primitives are known only by their bounding boxes; the builder returns the node array and
 //! the primitive order that the leaves index. It works on an array of 32-byte primitive
@@ -10,8 +11,10 @@
 
 mod binned_sah;
 mod collapse;
+mod pack;
 
 pub use collapse::collapse;
+pub use pack::pack_leaves;
 
 use glam::Vec4;
 
