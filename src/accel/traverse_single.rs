@@ -117,7 +117,7 @@ impl Entry {
 /// tori scene most nodes below the top levels miss the caches, and a pushed child would
 /// otherwise be loaded only when popped. Measured (PERF.md, "Large scenes"): +7 % diffuse and
 /// +8 % primary rays per second there, no change on the course scenes. Prefetching the
-/// entered leaves' triangle columns as well was within the noise for closest hits and cost
+/// entered leaves' triangles as well (then in nine columns) was within the noise for closest hits and cost
 /// ~10 % for course-scene shadow rays (an any-hit ray enters many leaves it never tests).
 #[inline(always)]
 fn prefetch_children(nodes: &[Bvh4Node], n: &Bvh4Node, mut bits: u32) {
