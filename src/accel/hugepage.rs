@@ -1,10 +1,11 @@
 //! Transparent huge pages for the structure's big arrays.
 //!
 //! A ray through the 1M-triangle scene touches ~15 wide nodes and one or two leaves, and a
-//! leaf reads one 320-byte triangle block (it read ten columns megabytes apart before the
-//! blocks): with 4 KiB pages each new page is a TLB miss (a page walk, itself often a cache miss) for nearly every access, since 51 MB of
-//! structure is ~12k pages against a 2k-entry second-level TLB. The kernel here runs THP in
-//! `madvise` mode, so the arrays ask for 2 MiB pages explicitly. Measured (PERF.md, "Large
+//! leaf reads one 320-byte triangle block (ten columns megabytes apart before the blocks).
+//! With 4 KiB pages nearly every such access is a TLB miss (a page walk, itself often a cache
+//! miss), since 60 MB of structure is ~15k pages against a 2k-entry second-level TLB. The
+//! kernel here runs THP in `madvise` mode, so the arrays ask for 2 MiB pages explicitly.
+//! Measured (PERF.md, "Large
 //! scenes").
 
 /// Asks the kernel to back the memory of `v` (its elements) with 2 MiB pages, and to
