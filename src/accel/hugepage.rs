@@ -5,8 +5,7 @@
 //! With 4 KiB pages nearly every such access is a TLB miss (a page walk, itself often a cache
 //! miss), since 60 MB of structure is ~15k pages against a 2k-entry second-level TLB. The
 //! kernel here runs THP in `madvise` mode, so the arrays ask for 2 MiB pages explicitly.
-//! Measured (PERF.md, "Large
-//! scenes").
+//! Measured (PERF.md, "Large scenes").
 
 /// Asks the kernel to back the memory of `v` (its elements) with 2 MiB pages, and to
 /// collapse the pages already touched into huge pages now. Best effort: any error (an old
