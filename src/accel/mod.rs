@@ -1,9 +1,9 @@
 //! Acceleration structure: the public surface every stage uses.
 //!
 //! Triangles live in SoA blocks of eight in leaf order under one flat 4-wide BVH (128-byte
-//! nodes, one SIMD test for four boxes), collapsed from a binned-SAH binary BVH that is dropped once
-//! collapsed. Single rays and packets traverse the same wide tree, so the structure is the
-//! wide nodes plus the triangle blocks. The course scenes hold at most a handful of analytic
+//! nodes, one SIMD test for four boxes), collapsed from a binned-SAH binary BVH that is
+//! dropped once collapsed. Single rays and packets traverse the same wide tree, so the
+//! structure is the wide nodes plus the triangle blocks. The course scenes hold at most a handful of analytic
 //! spheres, so they are a short list tested after the triangles rather than BVH primitives.
 
 pub mod build;
