@@ -27,6 +27,20 @@ fn rows(r: &[[f32; LANES]; 3]) -> V3<f32x8> {
     V3 { x: f32x8::new(r[0]), y: f32x8::new(r[1]), z: f32x8::new(r[2]) }
 }
 
+/// The ray (origin and direction broadcast) against all eight slots of `block` within
+/// [t_min, t_max]: hit mask, t, u, v. Lanes outside the leaf are masked off by the caller.
+#[inline(always)]
+fn test_block(
+    o: V3<f32x8>,
+    d: V3<f32x8>,
+    block: &TriangleBlock,
+    t_min: f32,
+    t_max: f32,
+) -> (f32x8, f32x8, f32x8, f32x8) {
+    let (v0, e1, e2) = (rows(&block.v0), rows(&block.e1), rows(&block.e2));
+    intersect_simd(o, d, v0, e1, e2, f32x8::splat(t_min), f32x8::splat(t_max), ALL)
+}
+
 /// Calls `test(block, lanes)` for each block the slots `first .. first + count` occupy, with
 /// the bit mask of their lanes in it, until it returns true; returns whether one did. A leaf
 /// of at most `LANES` triangles lies in one block (`build::pack_leaves`).
@@ -69,16 +83,7 @@ pub(super) fn intersect_leaf(
     let near_v = f32x8::splat(near);
     stats.triangle_tests += count as u64;
     leaf_blocks(tris, first, count, |block, lanes| {
-        let (mask, t, u, v) = intersect_simd(
-            o,
-            d,
-            rows(&block.v0),
-            rows(&block.e1),
-            rows(&block.e2),
-            f32x8::splat(ray.t_min),
-            f32x8::splat(ray.t_max),
-            ALL,
-        );
+        let (mask, t, u, v) = test_block(o, d, block, ray.t_min, ray.t_max);
         let mut bits = mask.to_bitmask() & lanes;
         if bits == 0 {
             return false;
@@ -110,8 +115,8 @@ pub(super) fn intersect_leaf(
 }
 
 /// Whether any of the leaf's triangles `first .. first + count` blocks the ray. (Occlusion
-/// needs no check of hits in front of the leaf box: its t_max never shrinks, so which leaves it enters does
-/// not depend on the order.)
+/// needs no check of hits in front of the leaf box: its t_max never shrinks, so which leaves
+/// it enters does not depend on the order.)
 #[inline]
 pub(super) fn occluded_leaf(
     tris: &TriangleSoa,
@@ -121,19 +126,9 @@ pub(super) fn occluded_leaf(
     stats: &mut TraceStats,
 ) -> bool {
     let (o, d) = (splat3(ray.origin), splat3(ray.dir));
-    let (t_min, t_max) = (f32x8::splat(ray.t_min), f32x8::splat(ray.t_max));
     leaf_blocks(tris, first, count, |block, lanes| {
         stats.triangle_tests += lanes.count_ones() as u64;
-        let (mask, ..) = intersect_simd(
-            o,
-            d,
-            rows(&block.v0),
-            rows(&block.e1),
-            rows(&block.e2),
-            t_min,
-            t_max,
-            ALL,
-        );
+        let (mask, ..) = test_block(o, d, block, ray.t_min, ray.t_max);
         mask.to_bitmask() & lanes != 0
     })
 }

@@ -106,7 +106,8 @@ impl TriangleSoa {
     /// Scene triangle index of slot `i`.
     #[inline(always)]
     pub fn prim(&self, i: usize) -> u32 {
-        self.slot(i).0.prim[i % LANES]
+        let (b, l) = self.slot(i);
+        b.prim[l]
     }
 
     /// Heap bytes of the blocks.
