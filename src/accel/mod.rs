@@ -1,7 +1,7 @@
 //! Acceleration structure: the public surface every stage uses.
 //!
-//! Triangles live in SoA blocks of eight in leaf order under one flat 4-wide BVH (128-byte
-//! nodes, one SIMD test for four boxes), collapsed from a binned-SAH binary BVH that is
+//! Triangles live in SoA blocks of eight in leaf order under one flat 8-wide BVH (256-byte
+//! nodes, one SIMD test for eight boxes), collapsed from a binned-SAH binary BVH that is
 //! dropped once collapsed. Single rays and packets traverse the same wide tree, so the
 //! structure is the wide nodes plus the triangle blocks. The course scenes hold at most a handful of analytic
 //! spheres, so they are a short list tested after the triangles rather than BVH primitives.
@@ -29,7 +29,7 @@ pub use build::BuildParams;
 pub use node::BvhNode;
 pub use packet::RayPacket;
 pub use traverse_packet::PacketStack;
-pub use wide_node::Bvh4Node;
+pub use wide_node::WideNode;
 
 /// Largest binary subtree the collapse merges into one wide leaf (`build::collapse`; 0 keeps
 /// the binary leaves). The binary SAH makes leaves of 1.7 triangles on average; the
@@ -83,7 +83,7 @@ impl TraceStats {
 }
 
 pub struct Accel {
-    wide_nodes: Vec<Bvh4Node>,
+    wide_nodes: Vec<WideNode>,
     tris: TriangleSoa,
     spheres: Vec<Sphere>,
     bounds: Aabb,
@@ -146,14 +146,14 @@ impl Accel {
         &self.tris
     }
 
-    /// The 4-wide tree.
-    pub fn wide_nodes(&self) -> &[Bvh4Node] {
+    /// The wide tree.
+    pub fn wide_nodes(&self) -> &[WideNode] {
         &self.wide_nodes
     }
 
     /// Bytes held by the structure: the wide nodes plus the triangle blocks.
     pub fn memory_bytes(&self) -> usize {
-        self.wide_nodes.capacity() * std::mem::size_of::<Bvh4Node>() + self.tris.memory_bytes()
+        self.wide_nodes.capacity() * std::mem::size_of::<WideNode>() + self.tris.memory_bytes()
     }
 
     /// The closest hit along the ray within [t_min, t_max].

@@ -1,4 +1,4 @@
-//! W rays at once through the 4-wide BVH (`wide_node`): closest hit and any hit.
+//! W rays at once through the wide BVH (`wide_node`): closest hit and any hit.
 //!
 //! Every child box of a node is tested against all active lanes at once (one SIMD slab test
 //! per child); entered children are visited nearest first (by the nearest lane's entry
@@ -18,7 +18,7 @@ use super::build::MAX_DEPTH;
 use super::leaf;
 use super::packet::{PacketHits, RayPacket, BOX_INFLATE, MAX_W};
 use super::traverse_single::{self, Entry as SingleEntry};
-use super::wide_node::{Bvh4Node, EMPTY, LEAF_BIT};
+use super::wide_node::{WideNode, ARITY, EMPTY, LEAF_BIT};
 use super::TraceStats;
 use crate::geometry::moller_trumbore::{intersect_simd, splat3, V3};
 use crate::geometry::triangles::{TriangleSoa, LANES};
@@ -43,7 +43,7 @@ pub fn default_fallback(w: usize) -> u32 {
 
 /// The box of child slot `i` of a node, as a scalar min/max per axis.
 #[inline(always)]
-fn child_box(n: &Bvh4Node, i: usize) -> ([f32; 3], [f32; 3]) {
+fn child_box(n: &WideNode, i: usize) -> ([f32; 3], [f32; 3]) {
     let b = &n.bounds;
     ([b[0][i], b[2][i], b[4][i]], [b[1][i], b[3][i], b[5][i]])
 }
@@ -74,7 +74,7 @@ fn splat_tri<V: SimdF32>(tris: &TriangleSoa, i: usize) -> [V3<V>; 3] {
     tris.vertex_edges(i).map(splat3)
 }
 
-/// One stack entry: a subtree (a child reference and its leaf count, as in `Bvh4Node`), the
+/// One stack entry: a subtree (a child reference and its leaf count, as in `WideNode`), the
 /// lanes that entered its box and their entry distances, and the nearest of those distances
 /// (the visiting order's key).
 #[derive(Clone, Copy)]
@@ -96,8 +96,8 @@ pub struct PacketStack<V> {
 impl<V> PacketStack<V> {
     pub fn new() -> PacketStack<V> {
         PacketStack {
-            closest: Vec::with_capacity(3 * MAX_DEPTH),
-            any: Vec::with_capacity(3 * MAX_DEPTH),
+            closest: Vec::with_capacity((ARITY - 1) * MAX_DEPTH),
+            any: Vec::with_capacity((ARITY - 1) * MAX_DEPTH),
         }
     }
 }
@@ -121,14 +121,15 @@ fn order_key<V: SimdF32>(near: V, lanes: u32) -> f32 {
 #[inline(always)]
 fn entered_children<V: SimdF32>(
     p: &RayPacket<V>,
-    n: &Bvh4Node,
+    n: &WideNode,
     lanes: u32,
     stats: &mut TraceStats,
-) -> ([Entry<V>; 4], usize) {
-    let mut out = [Entry { child: EMPTY, count: 0, lanes: 0, key: 0.0, near: V::splat(0.0) }; 4];
+) -> ([Entry<V>; ARITY], usize) {
+    let mut out =
+        [Entry { child: EMPTY, count: 0, lanes: 0, key: 0.0, near: V::splat(0.0) }; ARITY];
     let mut k = 0;
     let mut boxes = 0;
-    for i in 0..4 {
+    for i in 0..ARITY {
         if n.child[i] == EMPTY {
             break;
         }
@@ -161,7 +162,7 @@ fn entered_children<V: SimdF32>(
 
 /// Closest hits of the packet's active lanes; `p.t_max` shrinks lane by lane as hits are found.
 pub fn intersect<V: SimdF32>(
-    nodes: &[Bvh4Node],
+    nodes: &[WideNode],
     tris: &TriangleSoa,
     p: &mut RayPacket<V>,
     fallback: u32,
@@ -247,7 +248,7 @@ fn lane_by_lane<V: SimdF32>(
 /// Lanes `lanes` finish the subtree `e` one ray at a time.
 #[inline(never)]
 fn finish_single<V: SimdF32>(
-    nodes: &[Bvh4Node],
+    nodes: &[WideNode],
     tris: &TriangleSoa,
     e: &Entry<V>,
     lanes: u32,
@@ -333,7 +334,7 @@ fn drop_ties<V: SimdF32>(mut take: u32, ties: u32, prim: u32, hits: &PacketHits<
 /// as every active lane is. Children are visited farthest first, as single-ray occlusion
 /// does (`traverse_single::occluded_subtree`).
 pub fn occluded<V: SimdF32>(
-    nodes: &[Bvh4Node],
+    nodes: &[WideNode],
     tris: &TriangleSoa,
     p: &RayPacket<V>,
     fallback: u32,
@@ -449,7 +450,7 @@ mod tests {
             let (a, b) = (Vec3::new(r(), r(), r()), Vec3::new(r(), r(), r()));
             let (min, max): ([f32; 3], [f32; 3]) = (a.min(b).into(), a.max(b).into());
             // The box in slot 1 of a node (slot 0 a different box, so slots are not mixed up).
-            let mut n = Bvh4Node::EMPTY_NODE;
+            let mut n = WideNode::EMPTY_NODE;
             n.set_child(0, [9.0; 3], [10.0; 3], 1, 0);
             n.set_child(1, min, max, 2, 0);
             let rays: Vec<Ray> = (0..V::W)

@@ -1,5 +1,5 @@
-//! One ray through the 4-wide BVH (`wide_node`): closest hit and any hit, with one `f32x4`
-//! slab test for the four children of a node, hit children visited nearest first, a fixed
+//! One ray through the wide BVH (`wide_node`): closest hit and any hit, with one `ChildLanes`
+//! slab test for the eight children of a node, hit children visited nearest first, a fixed
 //! stack, and leaves tested 8 triangles at a time (`leaf`).
 //!
 //! Hits are the same as packet traversal's (`traverse_packet`): each lane of the box test
@@ -10,28 +10,26 @@
 
 use std::mem::MaybeUninit;
 
-use wide::f32x4;
-
 use super::build::MAX_DEPTH;
 use super::leaf::{intersect_leaf, occluded_leaf};
 use super::packet::{safe_recip, BOX_INFLATE};
-use super::wide_node::{Bvh4Node, LEAF_BIT};
+use super::wide_node::{ChildLanes, WideNode, ARITY, LEAF_BIT};
 use super::TraceStats;
 use crate::geometry::triangles::TriangleSoa;
 use crate::math::{Hit, Ray};
 use crate::simd::SimdF32;
 
 /// A wide tree is no deeper than the binary tree it came from, and each level pushes at most
-/// three siblings.
-const STACK: usize = 3 * MAX_DEPTH + 1;
+/// `ARITY - 1` siblings.
+const STACK: usize = (ARITY - 1) * MAX_DEPTH + 1;
 
-/// A ray prepared for 4-wide box tests: origin and reciprocal direction broadcast, and per
+/// A ray prepared for wide box tests: origin and reciprocal direction broadcast, and per
 /// axis whether the direction is negative (then the box maximum is the near plane).
 pub(super) struct WideRay {
-    origin: [f32x4; 3],
-    inv_dir: [f32x4; 3],
+    origin: [ChildLanes; 3],
+    inv_dir: [ChildLanes; 3],
     neg: [bool; 3],
-    t_min: f32x4,
+    t_min: ChildLanes,
 }
 
 impl WideRay {
@@ -39,29 +37,29 @@ impl WideRay {
     pub(super) fn new(ray: &Ray) -> WideRay {
         let inv = [safe_recip(ray.dir.x), safe_recip(ray.dir.y), safe_recip(ray.dir.z)];
         WideRay {
-            origin: [ray.origin.x, ray.origin.y, ray.origin.z].map(f32x4::splat),
-            inv_dir: inv.map(f32x4::splat),
+            origin: [ray.origin.x, ray.origin.y, ray.origin.z].map(ChildLanes::splat),
+            inv_dir: inv.map(ChildLanes::splat),
             neg: inv.map(f32::is_sign_negative),
-            t_min: f32x4::splat(ray.t_min),
+            t_min: ChildLanes::splat(ray.t_min),
         }
     }
 
-    /// Entry distances into the four child boxes and the bit mask of the boxes the ray enters
+    /// Entry distances into the child boxes and the bit mask of the boxes the ray enters
     /// within [t_min, t_max] (exit enlarged by `BOX_INFLATE`). Taking the near plane by the
     /// direction's sign gives, for finite rays, the same values as the packet test's min/max
     /// of the two plane distances (the product with a fixed-sign factor is monotonic).
     #[inline(always)]
-    pub(super) fn slab(&self, n: &Bvh4Node, t_max: f32) -> (f32x4, u32) {
+    pub(super) fn slab(&self, n: &WideNode, t_max: f32) -> (ChildLanes, u32) {
         let plane = |axis: usize, max: bool| {
             // `max as usize` is 0 or 1, so the row index is provably in bounds.
-            let row = f32x4::new(n.bounds[2 * axis + max as usize]);
+            let row = ChildLanes::new(n.bounds[2 * axis + max as usize]);
             (row - self.origin[axis]) * self.inv_dir[axis]
         };
         let near = |axis: usize| plane(axis, self.neg[axis]);
         let far = |axis: usize| plane(axis, !self.neg[axis]);
         let t_near = near(0).fast_max(near(1)).fast_max(near(2)).fast_max(self.t_min);
-        let t_far = far(0).fast_min(far(1)).fast_min(far(2)).fast_min(f32x4::splat(t_max))
-            * f32x4::splat(BOX_INFLATE);
+        let t_far = far(0).fast_min(far(1)).fast_min(far(2)).fast_min(ChildLanes::splat(t_max))
+            * ChildLanes::splat(BOX_INFLATE);
         (t_near, t_near.simd_le(t_far).bitmask())
     }
 }
@@ -96,7 +94,7 @@ impl<T: Copy> Stack<T> {
     }
 }
 
-/// A subtree: a child reference (`Bvh4Node::child`), its leaf triangle count, and the ray's
+/// A subtree: a child reference (`WideNode::child`), its leaf triangle count, and the ray's
 /// entry distance into its box.
 #[derive(Clone, Copy, Debug)]
 pub struct Entry {
@@ -121,31 +119,24 @@ impl Entry {
 /// costs 1 % (1310) and measured the same rays per second. Prefetching entered leaves'
 /// triangle blocks was within the noise.
 #[inline(always)]
-fn prefetch_node(nodes: &[Bvh4Node], child: u32) {
+fn prefetch_node(nodes: &[WideNode], child: u32) {
     use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
     if child & LEAF_BIT == 0 {
         let p = nodes.as_ptr().wrapping_add(child as usize) as *const i8;
         // SAFETY: a prefetch is a hint that never faults or reads into the program, whatever
         // the address; `sse` is part of the x86_64 baseline.
         unsafe {
-            _mm_prefetch::<_MM_HINT_T0>(p);
-            _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
+            for line in 0..std::mem::size_of::<WideNode>() / 64 {
+                _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64 * line));
+            }
         }
-    }
-}
-
-/// Orders two entries so the farther comes first.
-#[inline(always)]
-fn far_first(x: &mut Entry, y: &mut Entry) {
-    if x.t < y.t {
-        std::mem::swap(x, y);
     }
 }
 
 /// Closest hit among the triangles; `ray.t_max` shrinks to the hit distance. Among hits at
 /// equal distance the smallest prim wins.
 pub fn intersect(
-    nodes: &[Bvh4Node],
+    nodes: &[WideNode],
     tris: &TriangleSoa,
     ray: &mut Ray,
     stats: &mut TraceStats,
@@ -160,7 +151,7 @@ pub fn intersect(
 /// Closest hit within the subtree `start` (whose box the caller has tested; packets hand
 /// their last few lanes over here), improving on `best`, whose distance is `ray.t_max`.
 pub fn intersect_subtree(
-    nodes: &[Bvh4Node],
+    nodes: &[WideNode],
     tris: &TriangleSoa,
     start: Entry,
     ray: &mut Ray,
@@ -203,30 +194,29 @@ pub fn intersect_subtree(
                 cur = entry(near);
                 continue;
             }
-            // Three or four: sort far to near with a compare-exchange network (in registers),
-            // push all but the nearest, visit the nearest.
-            let c = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            let (mut e0, mut e1, mut e2) = (entry(a), entry(b), entry(c));
-            cur = if bits == 0 {
-                far_first(&mut e0, &mut e1);
-                far_first(&mut e1, &mut e2);
-                far_first(&mut e0, &mut e1);
-                push(&mut stack, e0);
-                push(&mut stack, e1);
-                e2
-            } else {
-                let mut e3 = entry(bits.trailing_zeros() as usize);
-                far_first(&mut e0, &mut e1);
-                far_first(&mut e2, &mut e3);
-                far_first(&mut e0, &mut e2);
-                far_first(&mut e1, &mut e3);
-                far_first(&mut e1, &mut e2);
-                push(&mut stack, e0);
-                push(&mut stack, e1);
-                push(&mut stack, e2);
-                e3
-            };
+            // Three or more: sort them far to near by insertion (in registers), push all but
+            // the nearest, visit the nearest.
+            let mut run = [entry(a); ARITY];
+            let mut k = 1;
+            for e in std::iter::once(entry(b)).chain(std::iter::from_fn(|| {
+                (bits != 0).then(|| {
+                    let i = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    entry(i)
+                })
+            })) {
+                let mut j = k;
+                while j > 0 && run[j - 1].t < e.t {
+                    run[j] = run[j - 1];
+                    j -= 1;
+                }
+                run[j] = e;
+                k += 1;
+            }
+            for &e in &run[..k - 1] {
+                push(&mut stack, e);
+            }
+            cur = run[k - 1];
         }
         if cur.child & LEAF_BIT != 0 {
             let first = (cur.child & !LEAF_BIT) as usize;
@@ -248,7 +238,7 @@ pub fn intersect_subtree(
 }
 
 /// Whether any triangle blocks the ray within [t_min, t_max]; stops at the first one found.
-pub fn occluded(nodes: &[Bvh4Node], tris: &TriangleSoa, ray: &Ray, stats: &mut TraceStats) -> bool {
+pub fn occluded(nodes: &[WideNode], tris: &TriangleSoa, ray: &Ray, stats: &mut TraceStats) -> bool {
     !nodes.is_empty() && occluded_subtree(nodes, tris, Entry::root(ray), ray, stats)
 }
 
@@ -260,7 +250,7 @@ pub fn occluded(nodes: &[Bvh4Node], tris: &TriangleSoa, ray: &Ray, stats: &mut T
 /// maxplanck shadow 66.8 -> 41.6 node tests per ray and about 1.7x the rays per second
 /// against slot order; nearest-first was worse than slot order (83.5 tests per ray).
 pub fn occluded_subtree(
-    nodes: &[Bvh4Node],
+    nodes: &[WideNode],
     tris: &TriangleSoa,
     start: Entry,
     ray: &Ray,

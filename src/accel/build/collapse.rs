@@ -1,6 +1,6 @@
-//! Binary BVH -> 4-wide BVH, by pulling grandchildren up (as in Embree's BVH4 builders and
-//! tinybvh's `BVH4_CPU` conversion, described, not copied): each wide node starts with the two
-//! children of a binary node and, while it has fewer than four, opens the interior child with
+//! Binary BVH -> 8-wide BVH, by pulling grandchildren up (as in Embree's BVH8 builders and
+//! tinybvh's `BVH8_CPU` conversion, described, not copied): each wide node starts with the two
+//! children of a binary node and, while it has fewer than `ARITY`, opens the interior child with
 //! the largest surface area (the one a random ray is most likely to enter, so opening it saves
 //! the most box-test steps) into its two children.
 //!
@@ -11,20 +11,20 @@
 //! once.
 
 use crate::accel::node::BvhNode;
-use crate::accel::wide_node::{Bvh4Node, LEAF_BIT};
+use crate::accel::wide_node::{WideNode, ARITY, LEAF_BIT};
 
 /// The wide tree of `nodes` (depth-first, root first; the first interior child of a node
 /// follows it), with binary subtrees of at most `max_leaf` triangles merged into leaves
 /// (0: keep the binary leaves). An empty binary tree gives an empty one; a tree that is one
 /// leaf gives one wide node with that leaf as its only child.
-pub fn collapse(nodes: &[BvhNode], max_leaf: usize) -> Vec<Bvh4Node> {
+pub fn collapse(nodes: &[BvhNode], max_leaf: usize) -> Vec<WideNode> {
     let mut out = Vec::new();
     let Some(root) = nodes.first() else {
         return out;
     };
     let c = Collapser { nodes, ranges: subtree_ranges(nodes), max_leaf };
     out.reserve(nodes.len() / 6 + 1);
-    out.push(Bvh4Node::EMPTY_NODE);
+    out.push(WideNode::EMPTY_NODE);
     if c.is_leaf(0) {
         out[0].set_child(0, root.min, root.max, c.leaf_ref(0), c.ranges[0].1);
     } else {
@@ -72,13 +72,14 @@ impl Collapser<'_> {
         LEAF_BIT | first
     }
 
-    /// Fills wide node `at` with the (up to four) descendants of the binary interior node
+    /// Fills wide node `at` with the (up to `ARITY`) descendants of the binary interior node
     /// `i`, then recurses into the interior ones.
-    fn fill(&self, i: usize, at: usize, out: &mut Vec<Bvh4Node>) {
+    fn fill(&self, i: usize, at: usize, out: &mut Vec<WideNode>) {
         let nodes = self.nodes;
-        let mut kids = [i + 1, nodes[i].index as usize, 0, 0];
+        let mut kids = [0; ARITY];
+        (kids[0], kids[1]) = (i + 1, nodes[i].index as usize);
         let mut k = 2;
-        while k < 4 {
+        while k < ARITY {
             let open = (0..k)
                 .filter(|&j| !self.is_leaf(kids[j]))
                 .max_by(|&a, &b| half_area(&nodes[kids[a]]).total_cmp(&half_area(&nodes[kids[b]])));
@@ -98,7 +99,7 @@ impl Collapser<'_> {
                 out[at].set_child(slot, n.min, n.max, self.leaf_ref(c), self.ranges[c].1);
             } else {
                 let child = out.len();
-                out.push(Bvh4Node::EMPTY_NODE);
+                out.push(WideNode::EMPTY_NODE);
                 out[at].set_child(slot, n.min, n.max, child as u32, 0);
                 self.fill(c, child, out);
             }
@@ -116,11 +117,11 @@ mod tests {
 
     /// Leaves of the wide tree: (first, count, box) in visiting order, with every interior
     /// child's box checked to be the union its children's boxes fit in.
-    fn leaves(w: &[Bvh4Node], at: usize, out: &mut Vec<(u32, u32)>) {
+    fn leaves(w: &[WideNode], at: usize, out: &mut Vec<(u32, u32)>) {
         let n = &w[at];
         let k = n.children();
         assert!(k >= 2 || (at == 0 && k == 1), "node {at} has {k} children");
-        for i in 0..4 {
+        for i in 0..ARITY {
             if n.child[i] == EMPTY {
                 assert!(i >= k, "children are packed from slot 0");
                 continue;

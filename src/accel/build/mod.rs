@@ -1,5 +1,5 @@
 //! BVH construction: a binned SAH build straight into the flat depth-first node array, and
-//! its collapse into the 4-wide tree that rays traverse (`collapse`), whose leaves are then
+//! its collapse into the 8-wide tree that rays traverse (`collapse`), whose leaves are then
 //! placed in triangle blocks (`pack`).
 //!
 //! Primitives are known only by their bounding boxes; the builder returns the node array and

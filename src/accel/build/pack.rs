@@ -7,7 +7,7 @@
 //! `LANES` triangles (possible only with binary leaves kept, or the brute-force oracle) starts
 //! a block and runs on through as many as it needs.
 
-use crate::accel::wide_node::{Bvh4Node, EMPTY, LEAF_BIT};
+use crate::accel::wide_node::{WideNode, ARITY, EMPTY, LEAF_BIT};
 use crate::geometry::triangles::{LANES, NO_PRIM};
 
 /// How many recent blocks with free lanes a leaf may go into. Measured on CBbunny, maxplanck
@@ -17,10 +17,10 @@ const OPEN: usize = 4;
 /// Rewrites every leaf reference of `nodes` from a range of `order` to a range of slots and
 /// returns what each slot holds (a scene triangle index or `NO_PRIM`), a whole number of
 /// blocks long.
-pub fn pack_leaves(nodes: &mut [Bvh4Node], order: &[u32]) -> Vec<u32> {
+pub fn pack_leaves(nodes: &mut [WideNode], order: &[u32]) -> Vec<u32> {
     let mut leaves: Vec<(u32, u32, u8)> = Vec::new();
     for (at, n) in nodes.iter().enumerate() {
-        for slot in 0..4 {
+        for slot in 0..ARITY {
             let c = n.child[slot];
             if c != EMPTY && c & LEAF_BIT != 0 {
                 leaves.push((c & !LEAF_BIT, at as u32, slot as u8));
@@ -86,7 +86,7 @@ mod tests {
                 assert_eq!(slots.len() % LANES, 0);
                 let mut seen = vec![false; n];
                 for (b, a) in before.iter().zip(&after) {
-                    for i in 0..4 {
+                    for i in 0..ARITY {
                         if b.child[i] == EMPTY || b.child[i] & LEAF_BIT == 0 {
                             assert_eq!(a.child[i], b.child[i]);
                             continue;
