@@ -29,7 +29,7 @@ pub use build::BuildParams;
 pub use node::BvhNode;
 pub use packet::RayPacket;
 pub use traverse_packet::PacketStack;
-pub use wide_node::WideNode;
+pub use wide_node::{WideNode, MAX_LEAF};
 
 /// Largest binary subtree the collapse merges into one wide leaf (`build::collapse`; 0 keeps
 /// the binary leaves). The binary SAH makes leaves of 1.7 triangles on average; the
@@ -44,8 +44,9 @@ pub const SPHERE_BIT: u32 = 1 << 31;
 pub enum AccelKind {
     #[default]
     Bvh,
-    /// Every triangle in one leaf, tested for every ray (`--no-bvh`): the oracle for tests
-    /// and the write-up's timing comparison.
+    /// Every triangle tested for every ray that enters the scene box (`--no-bvh`): leaves of
+    /// eight under a tree whose boxes are all the scene box (`build::flat_tree`). The oracle
+    /// for tests and the write-up's timing comparison.
     BruteForce,
 }
 
@@ -113,7 +114,7 @@ impl Accel {
                 let (min, max) =
                     if b.is_empty() { ([0.0; 3], [0.0; 3]) } else { (b.min.into(), b.max.into()) };
                 let n = boxes.len() as u32;
-                (vec![BvhNode { min, index: 0, max, count: n }], (0..n).collect())
+                (build::flat_tree(n, MAX_LEAF as u32, min, max), (0..n).collect())
             }
         };
         drop(boxes);

@@ -18,7 +18,7 @@ use super::build::MAX_DEPTH;
 use super::leaf;
 use super::packet::{PacketHits, RayPacket, BOX_INFLATE, MAX_W};
 use super::traverse_single::{self, Entry as SingleEntry};
-use super::wide_node::{WideNode, ARITY, EMPTY, LEAF_BIT};
+use super::wide_node::{leaf_range, WideNode, ARITY, EMPTY, LEAF_BIT};
 use super::TraceStats;
 use crate::geometry::moller_trumbore::{intersect_simd, splat3, V3};
 use crate::geometry::triangles::{TriangleSoa, LANES};
@@ -74,13 +74,12 @@ fn splat_tri<V: SimdF32>(tris: &TriangleSoa, i: usize) -> [V3<V>; 3] {
     tris.vertex_edges(i).map(splat3)
 }
 
-/// One stack entry: a subtree (a child reference and its leaf count, as in `WideNode`), the
+/// One stack entry: a subtree (a child reference, as in `WideNode`), the
 /// lanes that entered its box and their entry distances, and the nearest of those distances
 /// (the visiting order's key).
 #[derive(Clone, Copy)]
 struct Entry<V> {
     child: u32,
-    count: u32,
     lanes: u32,
     key: f32,
     near: V,
@@ -90,7 +89,7 @@ struct Entry<V> {
 /// for every packet (kilobytes at W = 8), which cost about a tenth of a primary ray.
 pub struct PacketStack<V> {
     closest: Vec<Entry<V>>,
-    any: Vec<(u32, u32, u32)>,
+    any: Vec<(u32, u32)>,
 }
 
 impl<V> PacketStack<V> {
@@ -125,8 +124,7 @@ fn entered_children<V: SimdF32>(
     lanes: u32,
     stats: &mut TraceStats,
 ) -> ([Entry<V>; ARITY], usize) {
-    let mut out =
-        [Entry { child: EMPTY, count: 0, lanes: 0, key: 0.0, near: V::splat(0.0) }; ARITY];
+    let mut out = [Entry { child: EMPTY, lanes: 0, key: 0.0, near: V::splat(0.0) }; ARITY];
     let mut k = 0;
     let mut boxes = 0;
     for i in 0..ARITY {
@@ -140,13 +138,7 @@ fn entered_children<V: SimdF32>(
         if entered == 0 {
             continue;
         }
-        let e = Entry {
-            child: n.child[i],
-            count: n.count[i],
-            lanes: entered,
-            key: order_key(near, entered),
-            near,
-        };
+        let e = Entry { child: n.child[i], lanes: entered, key: order_key(near, entered), near };
         // Insertion into the farthest-first order.
         let mut j = k;
         while j > 0 && out[j - 1].key < e.key {
@@ -176,7 +168,7 @@ pub fn intersect<V: SimdF32>(
     }
     let stack = &mut stack.closest;
     stack.clear();
-    let mut cur = Entry { child: 0, count: 0, lanes: active, key: 0.0, near: p.t_min };
+    let mut cur = Entry { child: 0, lanes: active, key: 0.0, near: p.t_min };
     loop {
         // Lanes whose best hit is already nearer than the subtree drop out of it.
         let lanes = cur.lanes & cur.near.simd_le(p.t_max * V::splat(BOX_INFLATE)).bitmask();
@@ -184,7 +176,7 @@ pub fn intersect<V: SimdF32>(
             if lanes.count_ones() <= fallback {
                 finish_single(nodes, tris, &cur, lanes, p, &mut hits, stats);
             } else if cur.child & LEAF_BIT != 0 {
-                let (first, count) = ((cur.child & !LEAF_BIT) as usize, cur.count as usize);
+                let (first, count) = leaf_range(cur.child);
                 if leaf_by_lane(lanes, count) {
                     lane_by_lane(lanes, cur.near, p, &mut hits, |ray, best, near| {
                         leaf::intersect_leaf(tris, first, count, near, ray, best, stats)
@@ -257,7 +249,7 @@ fn finish_single<V: SimdF32>(
     stats: &mut TraceStats,
 ) {
     lane_by_lane(lanes, e.near, p, hits, |ray, best, t| {
-        let start = SingleEntry { child: e.child, count: e.count, t };
+        let start = SingleEntry { child: e.child, t };
         traverse_single::intersect_subtree(nodes, tris, start, ray, best, stats);
     });
 }
@@ -348,19 +340,19 @@ pub fn occluded<V: SimdF32>(
     let mut blocked = 0u32;
     let stack = &mut stack.any;
     stack.clear();
-    // (child reference, leaf count, lanes)
-    let mut cur = (0u32, 0u32, active);
+    // (child reference, lanes)
+    let mut cur = (0u32, active);
     loop {
-        let lanes = cur.2 & !blocked;
+        let lanes = cur.1 & !blocked;
         if lanes != 0 {
-            let (child, count) = (cur.0, cur.1);
+            let child = cur.0;
             if lanes.count_ones() <= fallback {
-                let start = SingleEntry { child, count, t: 0.0 };
+                let start = SingleEntry { child, t: 0.0 };
                 blocked |= blocked_lane_by_lane(lanes, p, |ray| {
                     traverse_single::occluded_subtree(nodes, tris, start, ray, stats)
                 });
             } else if child & LEAF_BIT != 0 {
-                let (first, count) = ((child & !LEAF_BIT) as usize, count as usize);
+                let (first, count) = leaf_range(child);
                 if leaf_by_lane(lanes, count) {
                     blocked |= blocked_lane_by_lane(lanes, p, |ray| {
                         leaf::occluded_leaf(tris, first, count, ray, stats)
@@ -373,9 +365,9 @@ pub fn occluded<V: SimdF32>(
                 if k > 0 {
                     // Farthest first: push in reverse of the farthest-first order.
                     for e in children[1..k].iter().rev() {
-                        stack.push((e.child, e.count, e.lanes));
+                        stack.push((e.child, e.lanes));
                     }
-                    cur = (children[0].child, children[0].count, children[0].lanes);
+                    cur = (children[0].child, children[0].lanes);
                     continue;
                 }
             }
@@ -451,8 +443,8 @@ mod tests {
             let (min, max): ([f32; 3], [f32; 3]) = (a.min(b).into(), a.max(b).into());
             // The box in slot 1 of a node (slot 0 a different box, so slots are not mixed up).
             let mut n = WideNode::EMPTY_NODE;
-            n.set_child(0, [9.0; 3], [10.0; 3], 1, 0);
-            n.set_child(1, min, max, 2, 0);
+            n.set_child(0, [9.0; 3], [10.0; 3], 1);
+            n.set_child(1, min, max, 2);
             let rays: Vec<Ray> = (0..V::W)
                 .map(|k| {
                     let mut o = Vec3::new(r(), r(), r()) * 2.0;

@@ -13,7 +13,7 @@ use std::mem::MaybeUninit;
 use super::build::MAX_DEPTH;
 use super::leaf::{intersect_leaf, occluded_leaf};
 use super::packet::{safe_recip, BOX_INFLATE};
-use super::wide_node::{ChildLanes, WideNode, ARITY, LEAF_BIT};
+use super::wide_node::{leaf_range, ChildLanes, WideNode, ARITY, LEAF_BIT};
 use super::TraceStats;
 use crate::geometry::triangles::TriangleSoa;
 use crate::math::{Hit, Ray};
@@ -94,23 +94,21 @@ impl<T: Copy> Stack<T> {
     }
 }
 
-/// A subtree: a child reference (`WideNode::child`), its leaf triangle count, and the ray's
-/// entry distance into its box.
+/// A subtree: a child reference (`WideNode::child`) and the ray's entry distance into its box.
 #[derive(Clone, Copy, Debug)]
 pub struct Entry {
     pub child: u32,
-    pub count: u32,
     pub t: f32,
 }
 
 impl Entry {
     /// The whole tree (node 0), entered at `t_min`.
     pub fn root(ray: &Ray) -> Entry {
-        Entry { child: 0, count: 0, t: ray.t_min }
+        Entry { child: 0, t: ray.t_min }
     }
 }
 
-/// Starts loading node `child` (both cache lines) if it is one, while the ray descends into
+/// Starts loading node `child` (all its cache lines) if it is one, while the ray descends into
 /// a nearer sibling: on the 1M-triangle tori scene most nodes below the top levels miss the
 /// caches, and a pushed child would otherwise be loaded only when popped. Measured (PERF.md,
 /// "Large scenes" and "Triangle blocks"): prefetching every entered child gave +7 % diffuse
@@ -179,7 +177,7 @@ pub fn intersect_subtree(
                 break;
             }
             let t = t_near.to_array();
-            let entry = |i: usize| Entry { child: n.child[i], count: n.count[i], t: t[i] };
+            let entry = |i: usize| Entry { child: n.child[i], t: t[i] };
             let a = bits.trailing_zeros() as usize;
             bits &= bits - 1;
             if bits == 0 {
@@ -219,8 +217,8 @@ pub fn intersect_subtree(
             cur = run[k - 1];
         }
         if cur.child & LEAF_BIT != 0 {
-            let first = (cur.child & !LEAF_BIT) as usize;
-            intersect_leaf(tris, first, cur.count as usize, cur.t, ray, best, stats);
+            let (first, count) = leaf_range(cur.child);
+            intersect_leaf(tris, first, count, cur.t, ray, best, stats);
         }
         // Pop the next subtree that can still hold a nearer hit (the box test's tolerance, so
         // nothing is dropped that the box test would keep).
@@ -257,9 +255,9 @@ pub fn occluded_subtree(
     stats: &mut TraceStats,
 ) -> bool {
     let wr = WideRay::new(ray);
-    let mut stack = Stack::<(u32, u32)>::new();
+    let mut stack = Stack::<u32>::new();
     let mut node_tests = 0u64;
-    let (mut child, mut count) = (start.child, start.count);
+    let mut child = start.child;
     loop {
         while child & LEAF_BIT == 0 {
             let n = &nodes[child as usize];
@@ -278,13 +276,14 @@ pub fn occluded_subtree(
                     std::mem::swap(&mut a, &mut i);
                 }
                 prefetch_node(nodes, n.child[i]);
-                stack.push((n.child[i], n.count[i]));
+                stack.push(n.child[i]);
             }
-            (child, count) = (n.child[a], n.count[a]);
+            child = n.child[a];
         }
-        if child & LEAF_BIT != 0
-            && occluded_leaf(tris, (child & !LEAF_BIT) as usize, count as usize, ray, stats)
-        {
+        if child & LEAF_BIT != 0 && {
+            let (first, count) = leaf_range(child);
+            occluded_leaf(tris, first, count, ray, stats)
+        } {
             stats.node_tests += node_tests;
             return true;
         }
@@ -292,6 +291,6 @@ pub fn occluded_subtree(
             stats.node_tests += node_tests;
             return false;
         };
-        (child, count) = next;
+        child = next;
     }
 }

@@ -1,9 +1,34 @@
 //! The wide BVH node: `ARITY` child boxes in SoA, so one SIMD slab test covers them all.
 
-/// Child reference flag: the child is a leaf, the low 31 bits its first triangle in the SoA
-/// triangle store and `WideNode::count` its triangle count. Without the flag the child is the
+/// Child reference flag: the child is a leaf (`leaf_ref`). Without the flag the child is the
 /// node at that index of the wide node array.
 pub const LEAF_BIT: u32 = 1 << 31;
+
+/// Most triangles in a leaf: one triangle block (`geometry::triangles`).
+pub const MAX_LEAF: usize = 8;
+
+/// A leaf's first triangle takes the low `FIRST_BITS` bits of its reference, its count the
+/// four bits above them.
+const FIRST_BITS: u32 = 27;
+
+/// The reference to a leaf of `count` (1 to `MAX_LEAF`) triangles from `first` on. The count
+/// rides in the reference, so nodes need no count array (32 bytes of 256): PERF.md,
+/// "8-wide nodes".
+pub fn leaf_ref(first: usize, count: usize) -> u32 {
+    assert!((1..=MAX_LEAF).contains(&count), "a leaf holds 1 to {MAX_LEAF} triangles, not {count}");
+    assert!(
+        first + count <= 1 << FIRST_BITS,
+        "triangle index {first} does not fit a leaf reference"
+    );
+    LEAF_BIT | ((count as u32) << FIRST_BITS) | first as u32
+}
+
+/// (first triangle, count) of a leaf reference.
+#[inline(always)]
+pub fn leaf_range(child: u32) -> (usize, usize) {
+    let first = child & ((1 << FIRST_BITS) - 1);
+    (first as usize, ((child >> FIRST_BITS) & 15) as usize)
+}
 
 /// Children per node.
 pub const ARITY: usize = 8;
@@ -11,29 +36,28 @@ pub const ARITY: usize = 8;
 /// One lane per child: the SIMD type of a node's box rows.
 pub type ChildLanes = wide::f32x8;
 
-/// An unused child slot: a leaf of zero triangles (so a ray that somehow enters it, which
-/// its inverted box prevents for any finite ray, tests nothing) whose box is empty.
-pub const EMPTY: u32 = u32::MAX;
+/// An unused child slot: a leaf of no triangles, with an inverted box that no finite ray
+/// enters (a ray with NaN or infinite terms may, and then tests nothing).
+pub const EMPTY: u32 = LEAF_BIT;
 
 /// A node of the wide BVH, collapsed from the binary BVH (`build::collapse`). The boxes of
 /// the (up to `ARITY`) children are stored as one row of `ARITY` lanes per bound and axis, so one
 /// `ChildLanes` slab test covers every child. Children fill the slots from the first; unused slots
 /// hold `EMPTY` with an inverted box (min = +inf, max = -inf), which the slab test misses.
 /// Nodes are in depth-first order, the root first.
-#[repr(C, align(64))]
+/// 224 bytes, 32-byte aligned: every node touches four cache lines, as a 256-byte one would.
+#[repr(C, align(32))]
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WideNode {
     /// Rows `2 * axis` (minimum) and `2 * axis + 1` (maximum), one lane per child. Traversal
     /// picks the near and far row of an axis by the sign of the ray direction.
     pub bounds: [[f32; ARITY]; 6],
-    /// Per child: a node index, or `LEAF_BIT | first triangle`, or `EMPTY`.
+    /// Per child: a node index, or a `leaf_ref`, or `EMPTY`.
     pub child: [u32; ARITY],
-    /// Per child: the leaf's triangle count (0 for interior children and empty slots).
-    pub count: [u32; ARITY],
 }
 
-const _: () = assert!(std::mem::size_of::<WideNode>() == 32 * ARITY);
-const _: () = assert!(std::mem::align_of::<WideNode>() == 64);
+const _: () = assert!(std::mem::size_of::<WideNode>() == 28 * ARITY);
+const _: () = assert!(std::mem::align_of::<WideNode>() == 32);
 
 impl WideNode {
     /// A node with every slot empty.
@@ -47,22 +71,35 @@ impl WideNode {
             [f32::NEG_INFINITY; ARITY],
         ],
         child: [EMPTY; ARITY],
-        count: [0; ARITY],
     };
 
     /// Sets slot `i` to a child with the given box.
-    pub fn set_child(&mut self, i: usize, min: [f32; 3], max: [f32; 3], child: u32, count: u32) {
+    pub fn set_child(&mut self, i: usize, min: [f32; 3], max: [f32; 3], child: u32) {
         for axis in 0..3 {
             self.bounds[2 * axis][i] = min[axis];
             self.bounds[2 * axis + 1][i] = max[axis];
         }
         self.child[i] = child;
-        self.count[i] = count;
     }
 
     /// Number of used slots (children are packed from slot 0).
     #[inline(always)]
     pub fn children(&self) -> usize {
         self.child.iter().filter(|&&c| c != EMPTY).count()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn leaf_refs_round_trip() {
+        for (first, count) in [(0, 1), (5, 8), ((1 << FIRST_BITS) - 3, 3)] {
+            let r = leaf_ref(first, count);
+            assert!(r & LEAF_BIT != 0 && r != EMPTY);
+            assert_eq!(leaf_range(r), (first, count));
+        }
+        assert_eq!(leaf_range(EMPTY).1, 0);
     }
 }

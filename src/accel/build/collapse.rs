@@ -11,10 +11,11 @@
 //! once.
 
 use crate::accel::node::BvhNode;
-use crate::accel::wide_node::{WideNode, ARITY, LEAF_BIT};
+use crate::accel::wide_node::{leaf_ref, WideNode, ARITY, MAX_LEAF};
 
 /// The wide tree of `nodes` (depth-first, root first; the first interior child of a node
 /// follows it), with binary subtrees of at most `max_leaf` triangles merged into leaves
+/// (`max_leaf` and the binary leaves at most `MAX_LEAF`)
 /// (0: keep the binary leaves). An empty binary tree gives an empty one; a tree that is one
 /// leaf gives one wide node with that leaf as its only child.
 pub fn collapse(nodes: &[BvhNode], max_leaf: usize) -> Vec<WideNode> {
@@ -22,11 +23,12 @@ pub fn collapse(nodes: &[BvhNode], max_leaf: usize) -> Vec<WideNode> {
     let Some(root) = nodes.first() else {
         return out;
     };
+    assert!(max_leaf <= MAX_LEAF, "wide leaves hold at most {MAX_LEAF} triangles, not {max_leaf}");
     let c = Collapser { nodes, ranges: subtree_ranges(nodes), max_leaf };
     out.reserve(nodes.len() / 6 + 1);
     out.push(WideNode::EMPTY_NODE);
     if c.is_leaf(0) {
-        out[0].set_child(0, root.min, root.max, c.leaf_ref(0), c.ranges[0].1);
+        out[0].set_child(0, root.min, root.max, c.leaf_ref(0));
     } else {
         c.fill(0, 0, &mut out);
     }
@@ -67,9 +69,8 @@ impl Collapser<'_> {
     }
 
     fn leaf_ref(&self, i: usize) -> u32 {
-        let first = self.ranges[i].0;
-        assert!(first < LEAF_BIT, "triangle index {first} does not fit a wide leaf reference");
-        LEAF_BIT | first
+        let (first, count) = self.ranges[i];
+        leaf_ref(first as usize, count as usize)
     }
 
     /// Fills wide node `at` with the (up to `ARITY`) descendants of the binary interior node
@@ -96,11 +97,11 @@ impl Collapser<'_> {
         for (slot, &c) in kids[..k].iter().enumerate() {
             let n = &nodes[c];
             if self.is_leaf(c) {
-                out[at].set_child(slot, n.min, n.max, self.leaf_ref(c), self.ranges[c].1);
+                out[at].set_child(slot, n.min, n.max, self.leaf_ref(c));
             } else {
                 let child = out.len();
                 out.push(WideNode::EMPTY_NODE);
-                out[at].set_child(slot, n.min, n.max, child as u32, 0);
+                out[at].set_child(slot, n.min, n.max, child as u32);
                 self.fill(c, child, out);
             }
         }
@@ -111,7 +112,7 @@ impl Collapser<'_> {
 mod tests {
     use super::*;
     use crate::accel::build::{build, BuildParams};
-    use crate::accel::wide_node::EMPTY;
+    use crate::accel::wide_node::{leaf_range, EMPTY, LEAF_BIT};
     use crate::math::{Aabb, Vec3};
     use crate::sampler::Pcg32;
 
@@ -127,7 +128,8 @@ mod tests {
                 continue;
             }
             if n.child[i] & LEAF_BIT != 0 {
-                out.push((n.child[i] & !LEAF_BIT, n.count[i]));
+                let (first, count) = leaf_range(n.child[i]);
+                out.push((first as u32, count as u32));
             } else {
                 let c = n.child[i] as usize;
                 assert!(c > at, "depth-first order");
@@ -167,7 +169,7 @@ mod tests {
                 let mut next = 0;
                 for &(first, count) in &wide_leaves {
                     assert_eq!(first, next, "n = {n}, max_leaf {max_leaf}");
-                    assert!(count as usize <= max_leaf.max(8), "n = {n}: leaf of {count}");
+                    assert!(count as usize <= MAX_LEAF, "n = {n}: leaf of {count}");
                     next += count;
                 }
                 assert_eq!(next as usize, n);

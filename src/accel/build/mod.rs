@@ -27,7 +27,8 @@ use super::node::BvhNode;
 pub struct BuildParams {
     /// SAH bins per axis (at most `binned_sah::MAX_BINS`).
     pub bins: usize,
-    /// Largest leaf; also the size under which a leaf is always allowed.
+    /// Largest leaf; also the size under which a leaf is always allowed. At most
+    /// `wide_node::MAX_LEAF`, the most a wide leaf holds.
     pub max_leaf: usize,
     /// Cost of one box test relative to one triangle test.
     pub traversal_cost: f32,
@@ -234,6 +235,29 @@ fn build_node(
     index as u32
 }
 
+/// A balanced binary tree over `count` primitives in order, in leaves of at most `leaf`, with
+/// every node's box `min`..`max`: the brute-force oracle's tree, which every ray that enters
+/// the box walks to the end, testing every primitive.
+pub fn flat_tree(count: u32, leaf: u32, min: [f32; 3], max: [f32; 3]) -> Vec<BvhNode> {
+    fn add(nodes: &mut Vec<BvhNode>, first: u32, count: u32, leaf: u32, b: ([f32; 3], [f32; 3])) {
+        let at = nodes.len();
+        nodes.push(BvhNode { min: b.0, index: first, max: b.1, count });
+        if count > leaf {
+            // Halve in whole leaves, so that every leaf but the last is full.
+            let left = count.div_ceil(leaf) / 2 * leaf;
+            add(nodes, first, left, leaf, b);
+            nodes[at].index = nodes.len() as u32;
+            nodes[at].count = 0;
+            add(nodes, first + left, count - left, leaf, b);
+        }
+    }
+    let mut nodes = Vec::with_capacity(2 * count.div_ceil(leaf.max(1)) as usize);
+    if count > 0 {
+        add(&mut nodes, 0, count, leaf.max(1), (min, max));
+    }
+    nodes
+}
+
 /// Appends a subtree built in its own vector; its interior nodes' child links are relative to
 /// that vector, so they move by the offset at which it lands.
 fn append_shifted(nodes: &mut Vec<BvhNode>, sub: &[BvhNode]) {
@@ -245,4 +269,34 @@ fn append_shifted(nodes: &mut Vec<BvhNode>, sub: &[BvhNode]) {
         }
         n
     }));
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The brute-force tree: leaves of at most `leaf` tile the primitives in order, every
+    /// interior node links its second child correctly, and every box is the given one.
+    #[test]
+    fn flat_tree_tiles_the_primitives() {
+        assert!(flat_tree(0, 8, [0.0; 3], [1.0; 3]).is_empty());
+        for count in [1u32, 7, 8, 9, 16, 17, 100, 1000] {
+            let nodes = flat_tree(count, 8, [0.0; 3], [1.0; 3]);
+            let mut next = 0;
+            let mut stack = vec![0usize];
+            while let Some(i) = stack.pop() {
+                let n = &nodes[i];
+                assert_eq!((n.min, n.max), ([0.0; 3], [1.0; 3]));
+                if n.is_leaf() {
+                    assert_eq!(n.index, next, "count {count}");
+                    assert!(n.count <= 8);
+                    next += n.count;
+                } else {
+                    stack.push(n.index as usize);
+                    stack.push(i + 1);
+                }
+            }
+            assert_eq!(next, count);
+        }
+    }
 }

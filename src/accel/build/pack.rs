@@ -3,27 +3,29 @@
 //!
 //! Leaves are taken in depth-first order and each goes into the first of the last `OPEN`
 //! blocks it still fits in, else into a fresh one. Nearby leaves in that order are nearby in
-//! space, so leaves that share a block tend to be visited by the same rays. A leaf of more than
-//! `LANES` triangles (possible only with binary leaves kept, or the brute-force oracle) starts
-//! a block and runs on through as many as it needs.
+//! space, so leaves that share a block tend to be visited by the same rays.
 
-use crate::accel::wide_node::{WideNode, ARITY, EMPTY, LEAF_BIT};
+use crate::accel::wide_node::{leaf_range, leaf_ref, WideNode, ARITY, EMPTY, LEAF_BIT, MAX_LEAF};
 use crate::geometry::triangles::{LANES, NO_PRIM};
 
+const _: () = assert!(MAX_LEAF <= LANES, "a leaf fits one block");
+
 /// How many recent blocks with free lanes a leaf may go into. Measured on CBbunny, maxplanck
-/// and the 1M tori (average leaf 5.7-6.0 triangles): PERF.md, "Triangle blocks".
-const OPEN: usize = 4;
+/// and the 1M tori (average leaf 5.7-6.0 triangles): PERF.md, "Triangle blocks" (4 with the
+/// 4-wide tree) and "8-wide nodes" (8 keeps the 8-wide tree within 64 bytes per triangle).
+const OPEN: usize = 8;
 
 /// Rewrites every leaf reference of `nodes` from a range of `order` to a range of slots and
 /// returns what each slot holds (a scene triangle index or `NO_PRIM`), a whole number of
 /// blocks long.
 pub fn pack_leaves(nodes: &mut [WideNode], order: &[u32]) -> Vec<u32> {
-    let mut leaves: Vec<(u32, u32, u8)> = Vec::new();
+    let mut leaves: Vec<(usize, usize, u32, u8)> = Vec::new();
     for (at, n) in nodes.iter().enumerate() {
         for slot in 0..ARITY {
             let c = n.child[slot];
             if c != EMPTY && c & LEAF_BIT != 0 {
-                leaves.push((c & !LEAF_BIT, at as u32, slot as u8));
+                let (first, count) = leaf_range(c);
+                leaves.push((first, count, at as u32, slot as u8));
             }
         }
     }
@@ -31,9 +33,7 @@ pub fn pack_leaves(nodes: &mut [WideNode], order: &[u32]) -> Vec<u32> {
     let mut slots: Vec<u32> = Vec::with_capacity(order.len() + order.len() / 2);
     // The last `OPEN` blocks that still have free lanes: block index and lanes used.
     let mut open: Vec<(usize, usize)> = Vec::with_capacity(OPEN + 1);
-    for (first, at, slot) in leaves {
-        let n = &mut nodes[at as usize];
-        let count = n.count[slot as usize] as usize;
+    for (first, count, at, slot) in leaves {
         let start = match open.iter_mut().find(|(_, used)| *used + count <= LANES) {
             Some((block, used)) => {
                 *used += count;
@@ -41,20 +41,19 @@ pub fn pack_leaves(nodes: &mut [WideNode], order: &[u32]) -> Vec<u32> {
             }
             None => {
                 let start = slots.len();
-                slots.resize(start + count.div_ceil(LANES) * LANES, NO_PRIM);
-                if !count.is_multiple_of(LANES) {
+                slots.resize(start + LANES, NO_PRIM);
+                if count < LANES {
                     if open.len() == OPEN {
                         open.remove(0);
                     }
-                    open.push((slots.len() / LANES - 1, count % LANES));
+                    open.push((start / LANES, count));
                 }
                 start
             }
         };
         open.retain(|&(_, used)| used < LANES);
-        assert!(start < LEAF_BIT as usize, "slot {start} does not fit a wide leaf reference");
-        slots[start..start + count].copy_from_slice(&order[first as usize..][..count]);
-        n.child[slot as usize] = LEAF_BIT | start as u32;
+        slots[start..start + count].copy_from_slice(&order[first..][..count]);
+        nodes[at as usize].child[slot as usize] = leaf_ref(start, count);
     }
     slots
 }
@@ -66,8 +65,8 @@ mod tests {
     use crate::math::{Aabb, Vec3};
     use crate::sampler::Pcg32;
 
-    /// Every triangle gets exactly one slot; a leaf of at most `LANES` triangles lies in one
-    /// block, a longer one starts a block; leaf slots hold the leaf's triangles in order.
+    /// Every triangle gets exactly one slot; a leaf lies in one block; leaf slots hold the
+    /// leaf's triangles in order.
     #[test]
     fn leaves_lie_in_blocks_and_keep_their_triangles() {
         let mut rng = Pcg32::new(5, 6);
@@ -78,7 +77,7 @@ mod tests {
                     Aabb::from_points(&[c, c + Vec3::splat(0.1 * rng.next_f32())])
                 })
                 .collect();
-            let bin = build(&boxes, BuildParams { max_leaf: 12, ..BuildParams::default() });
+            let bin = build(&boxes, BuildParams::default());
             for max_leaf in [0, 8] {
                 let before = collapse(&bin.nodes, max_leaf);
                 let mut after = before.clone();
@@ -91,14 +90,10 @@ mod tests {
                             assert_eq!(a.child[i], b.child[i]);
                             continue;
                         }
-                        let (old, new) =
-                            ((b.child[i] & !LEAF_BIT) as usize, (a.child[i] & !LEAF_BIT) as usize);
-                        let count = b.count[i] as usize;
-                        if count <= LANES {
-                            assert_eq!(new / LANES, (new + count - 1) / LANES, "n = {n}");
-                        } else {
-                            assert_eq!(new % LANES, 0);
-                        }
+                        let ((old, count), (new, new_count)) =
+                            (leaf_range(b.child[i]), leaf_range(a.child[i]));
+                        assert_eq!(count, new_count);
+                        assert_eq!(new / LANES, (new + count - 1) / LANES, "n = {n}");
                         assert_eq!(&slots[new..new + count], &bin.order[old..old + count]);
                         for &p in &slots[new..new + count] {
                             assert!(!std::mem::replace(&mut seen[p as usize], true));
