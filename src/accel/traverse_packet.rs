@@ -18,7 +18,7 @@ use super::build::MAX_DEPTH;
 use super::leaf;
 use super::packet::{PacketHits, RayPacket, BOX_INFLATE, MAX_W};
 use super::traverse_single::{self, Entry as SingleEntry};
-use super::wide_node::{leaf_range, WideNode, ARITY, EMPTY, LEAF_BIT};
+use super::wide_node::{leaf_range, WideNode, ARITY, LEAF_BIT};
 use super::TraceStats;
 use crate::geometry::moller_trumbore::{intersect_simd, splat3, V3};
 use crate::geometry::triangles::{TriangleSoa, LANES};
@@ -74,14 +74,12 @@ fn splat_tri<V: SimdF32>(tris: &TriangleSoa, i: usize) -> [V3<V>; 3] {
     tris.vertex_edges(i).map(splat3)
 }
 
-/// One stack entry: a subtree (a child reference, as in `WideNode`), the
-/// lanes that entered its box and their entry distances, and the nearest of those distances
-/// (the visiting order's key).
+/// One stack entry: a subtree (a child reference, as in `WideNode`), the lanes that entered
+/// its box and their entry distances.
 #[derive(Clone, Copy)]
 struct Entry<V> {
     child: u32,
     lanes: u32,
-    key: f32,
     near: V,
 }
 
@@ -115,41 +113,69 @@ fn order_key<V: SimdF32>(near: V, lanes: u32) -> f32 {
     near.lane(lanes.trailing_zeros() as usize)
 }
 
-/// The children of node `n` that some of `lanes` enter, farthest first (by their nearest
-/// lane), and how many there are.
+/// The children of a node that some lanes enter: per slot the lanes and their entry
+/// distances, and the entered slots farthest first (by `order_key`).
+struct Entered<V> {
+    near: [V; ARITY],
+    lanes: [u32; ARITY],
+    key: [f32; ARITY],
+    /// Slots, farthest first; the first `k` are entered.
+    order: [u8; ARITY],
+    k: usize,
+}
+
+impl<V: SimdF32> Entered<V> {
+    /// The `j`-th entered child of `n` in farthest-first order.
+    #[inline(always)]
+    fn entry(&self, n: &WideNode, j: usize) -> Entry<V> {
+        let i = self.order[j] as usize;
+        Entry { child: n.child[i], lanes: self.lanes[i], near: self.near[i] }
+    }
+}
+
+/// The children of node `n` that some of `lanes` enter. All child boxes are tested first,
+/// without a branch on the outcome, and only the entered ones are then sorted: a branch per
+/// child on whether any lane entered it was the hottest spot of packet traversal (`perf`
+/// on maxplanck primary rays; PERF.md, "8-wide nodes").
 #[inline(always)]
 fn entered_children<V: SimdF32>(
     p: &RayPacket<V>,
     n: &WideNode,
     lanes: u32,
     stats: &mut TraceStats,
-) -> ([Entry<V>; ARITY], usize) {
-    let mut out = [Entry { child: EMPTY, lanes: 0, key: 0.0, near: V::splat(0.0) }; ARITY];
-    let mut k = 0;
-    let mut boxes = 0;
-    for i in 0..ARITY {
-        if n.child[i] == EMPTY {
-            break;
-        }
-        boxes += 1;
+) -> Entered<V> {
+    let mut e = Entered {
+        near: [V::splat(0.0); ARITY],
+        lanes: [0; ARITY],
+        key: [0.0; ARITY],
+        order: [0; ARITY],
+        k: 0,
+    };
+    let used = n.children();
+    let mut hit = 0u32;
+    for i in 0..used {
         let (min, max) = child_box(n, i);
         let (m, near) = slab(p, min, max, p.t_max);
         let entered = m.bitmask() & lanes;
-        if entered == 0 {
-            continue;
-        }
-        let e = Entry { child: n.child[i], lanes: entered, key: order_key(near, entered), near };
-        // Insertion into the farthest-first order.
-        let mut j = k;
-        while j > 0 && out[j - 1].key < e.key {
-            out[j] = out[j - 1];
+        (e.near[i], e.lanes[i]) = (near, entered);
+        hit |= ((entered != 0) as u32) << i;
+    }
+    stats.node_tests += used as u64 * lanes.count_ones() as u64;
+    // Insertion into the farthest-first order.
+    while hit != 0 {
+        let i = hit.trailing_zeros() as usize;
+        hit &= hit - 1;
+        let key = order_key(e.near[i], e.lanes[i]);
+        e.key[i] = key;
+        let mut j = e.k;
+        while j > 0 && e.key[e.order[j - 1] as usize] < key {
+            e.order[j] = e.order[j - 1];
             j -= 1;
         }
-        out[j] = e;
-        k += 1;
+        e.order[j] = i as u8;
+        e.k += 1;
     }
-    stats.node_tests += boxes * lanes.count_ones() as u64;
-    (out, k)
+    e
 }
 
 /// Closest hits of the packet's active lanes; `p.t_max` shrinks lane by lane as hits are found.
@@ -168,7 +194,7 @@ pub fn intersect<V: SimdF32>(
     }
     let stack = &mut stack.closest;
     stack.clear();
-    let mut cur = Entry { child: 0, lanes: active, key: 0.0, near: p.t_min };
+    let mut cur = Entry { child: 0, lanes: active, near: p.t_min };
     loop {
         // Lanes whose best hit is already nearer than the subtree drop out of it.
         let lanes = cur.lanes & cur.near.simd_le(p.t_max * V::splat(BOX_INFLATE)).bitmask();
@@ -185,10 +211,11 @@ pub fn intersect<V: SimdF32>(
                     intersect_leaf(tris, first, count, cur.near, lanes, p, &mut hits, stats);
                 }
             } else {
-                let (children, k) = entered_children(p, &nodes[cur.child as usize], lanes, stats);
-                if k > 0 {
-                    stack.extend_from_slice(&children[..k - 1]);
-                    cur = children[k - 1];
+                let n = &nodes[cur.child as usize];
+                let e = entered_children(p, n, lanes, stats);
+                if e.k > 0 {
+                    stack.extend((0..e.k - 1).map(|j| e.entry(n, j)));
+                    cur = e.entry(n, e.k - 1);
                     continue;
                 }
             }
@@ -361,13 +388,16 @@ pub fn occluded<V: SimdF32>(
                     blocked |= occluded_leaf(tris, first, count, lanes, p, stats);
                 }
             } else {
-                let (children, k) = entered_children(p, &nodes[child as usize], lanes, stats);
-                if k > 0 {
+                let n = &nodes[child as usize];
+                let e = entered_children(p, n, lanes, stats);
+                if e.k > 0 {
                     // Farthest first: push in reverse of the farthest-first order.
-                    for e in children[1..k].iter().rev() {
-                        stack.push((e.child, e.lanes));
+                    for j in (1..e.k).rev() {
+                        let i = e.order[j] as usize;
+                        stack.push((n.child[i], e.lanes[i]));
                     }
-                    cur = (children[0].child, children[0].lanes);
+                    let i = e.order[0] as usize;
+                    cur = (n.child[i], e.lanes[i]);
                     continue;
                 }
             }
