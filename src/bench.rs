@@ -330,11 +330,7 @@ fn trace_chunk(
     } else {
         let mut hits = vec![None; rays.len()];
         match traversal {
-            Traversal::Single => {
-                for (h, r) in hits.iter_mut().zip(rays) {
-                    *h = accel.intersect(r, stats);
-                }
-            }
+            Traversal::Single => accel.intersect_stream(rays, &mut hits, stats),
             Traversal::Packet4 => {
                 accel.intersect_packets_with::<4>(rays, fallback, &mut hits, stats)
             }

@@ -1,10 +1,10 @@
-//! Packets (4 and 8 wide) against single rays on the same rays: the same hit or miss,
-//! bit-identical t, u, v and the same prim for every ray, and the same occlusion answer for
-//! shadow rays.
+//! Packets (4 and 8 wide) and streams of interleaved single rays against single rays on the
+//! same rays: the same hit or miss, bit-identical t, u, v and the same prim for every ray, and
+//! the same occlusion answer for shadow rays.
 
 mod common;
 
-use pathtracer::accel::{Accel, AccelKind, PacketStack, RayPacket, TraceStats};
+use pathtracer::accel::{traverse_single, Accel, AccelKind, PacketStack, RayPacket, TraceStats};
 use pathtracer::bench::{generate_ray_sets, triangles_only};
 use pathtracer::math::{Hit, Ray, Vec3};
 use pathtracer::scene::{collada, Scene};
@@ -14,11 +14,25 @@ fn bits(h: Option<Hit>) -> Option<(u32, u32, u32, u32)> {
     h.map(|h| (h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.prim))
 }
 
-/// Every ray's closest hit and occlusion agree between single rays and both packet widths. Returns the number of closest hits found (so callers can check the
-/// rays test something).
+/// Every ray's closest hit and occlusion agree between single rays, both packet widths and
+/// streams of rays in flight (`Accel::intersect_stream`, which also counts exactly the same
+/// work, and the bare triangle stream at 3 rays in flight against the bare triangle
+/// traversal). Returns the number of closest hits found (so callers can check the rays test
+/// something).
 fn assert_agree(accel: &Accel, rays: &[Ray], what: &str) -> usize {
     let mut stats = TraceStats::default();
     let single: Vec<Option<Hit>> = rays.iter().map(|r| accel.intersect(r, &mut stats)).collect();
+    let mut stream = vec![None; rays.len()];
+    let mut stream_stats = TraceStats::default();
+    accel.intersect_stream(rays, &mut stream, &mut stream_stats);
+    assert_eq!(stream_stats, stats, "{what}: the stream counts the same work");
+    let (nodes, tris) = (accel.wide_nodes(), accel.triangles());
+    let bare: Vec<Option<Hit>> = rays
+        .iter()
+        .map(|r| traverse_single::intersect(nodes, tris, &mut r.clone(), &mut stats))
+        .collect();
+    let mut bare3 = vec![None; rays.len()];
+    traverse_single::intersect_stream::<3>(nodes, tris, rays, &mut bare3, &mut stats);
     let single_occ: Vec<bool> = rays.iter().map(|r| accel.occluded(r, &mut stats)).collect();
     let mut p4 = vec![None; rays.len()];
     let mut p8 = vec![None; rays.len()];
@@ -30,6 +44,8 @@ fn assert_agree(accel: &Accel, rays: &[Ray], what: &str) -> usize {
     accel.occluded_packets::<8>(rays, &mut o8, &mut stats);
     for i in 0..rays.len() {
         let s = bits(single[i]);
+        assert_eq!(s, bits(stream[i]), "{what}: ray {i} {:?}: the stream differs", rays[i]);
+        assert_eq!(bits(bare[i]), bits(bare3[i]), "{what}: ray {i} {:?}: stream of 3", rays[i]);
         assert_eq!(s, bits(p4[i]), "{what}: ray {i} {:?}: packet4 differs", rays[i]);
         assert_eq!(s, bits(p8[i]), "{what}: ray {i} {:?}: packet8 differs", rays[i]);
         assert_eq!(single_occ[i], o4[i], "{what}: ray {i} {:?}: packet4 occlusion", rays[i]);

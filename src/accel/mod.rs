@@ -165,6 +165,29 @@ impl Accel {
         self.spheres_after(r, best, stats)
     }
 
+    /// Closest hits of any number of rays (`hits[i]` answers `rays[i]`), the same as
+    /// `intersect` ray by ray, with a few rays interleaved on the thread
+    /// (`traverse_single::intersect_stream`).
+    pub fn intersect_stream(&self, rays: &[Ray], hits: &mut [Option<Hit>], stats: &mut TraceStats) {
+        use traverse_single::{intersect_stream, STREAM_LARGE, STREAM_LARGE_BYTES, STREAM_SMALL};
+        stats.rays += rays.len() as u64;
+        let (nodes, tris) = (&self.wide_nodes, &self.tris);
+        if self.memory_bytes() <= STREAM_LARGE_BYTES {
+            intersect_stream::<STREAM_SMALL>(nodes, tris, rays, hits, stats);
+        } else {
+            intersect_stream::<STREAM_LARGE>(nodes, tris, rays, hits, stats);
+        }
+        if !self.spheres.is_empty() {
+            for (r, h) in rays.iter().zip(hits.iter_mut()) {
+                let mut r = *r;
+                if let Some(hit) = h {
+                    r.t_max = hit.t;
+                }
+                *h = self.spheres_after(r, *h, stats);
+            }
+        }
+    }
+
     /// The spheres after the triangles: `r.t_max` is the triangle hit's distance, if any.
     fn spheres_after(
         &self,

@@ -44,7 +44,8 @@ pub fn extend(
             ctx.accel.intersect_packets::<PACKET>(&rays.rays, hits, stats);
         }
         Coherence::Incoherent => {
-            hits.extend(rays.rays.iter().map(|r| ctx.accel.intersect(r, stats)));
+            hits.resize(rays.len(), None);
+            ctx.accel.intersect_stream(&rays.rays, hits, stats);
         }
     }
 }
