@@ -214,7 +214,12 @@ pub fn intersect<V: SimdF32>(
                 let n = &nodes[cur.child as usize];
                 let e = entered_children(p, n, lanes, stats);
                 if e.k > 0 {
-                    stack.extend((0..e.k - 1).map(|j| e.entry(n, j)));
+                    // Pushed subtrees start loading now, as in single-ray traversal.
+                    stack.extend((0..e.k - 1).map(|j| {
+                        let entry = e.entry(n, j);
+                        traverse_single::prefetch_node(nodes, entry.child);
+                        entry
+                    }));
                     cur = e.entry(n, e.k - 1);
                     continue;
                 }
@@ -394,6 +399,7 @@ pub fn occluded<V: SimdF32>(
                     // Farthest first: push in reverse of the farthest-first order.
                     for j in (1..e.k).rev() {
                         let i = e.order[j] as usize;
+                        traverse_single::prefetch_node(nodes, n.child[i]);
                         stack.push((n.child[i], e.lanes[i]));
                     }
                     let i = e.order[0] as usize;
