@@ -314,11 +314,7 @@ fn trace_chunk(
     if set.is_occlusion() {
         let mut blocked = vec![false; rays.len()];
         match traversal {
-            Traversal::Single => {
-                for (b, r) in blocked.iter_mut().zip(rays) {
-                    *b = accel.occluded(r, stats);
-                }
-            }
+            Traversal::Single => accel.occluded_stream(rays, &mut blocked, stats),
             Traversal::Packet4 => {
                 accel.occluded_packets_with::<4>(rays, fallback, &mut blocked, stats)
             }

@@ -16,8 +16,8 @@ fn bits(h: Option<Hit>) -> Option<(u32, u32, u32, u32)> {
 
 /// Every ray's closest hit and occlusion agree between single rays, both packet widths and
 /// streams of rays in flight (`Accel::intersect_stream`, which also counts exactly the same
-/// work, and the bare triangle stream at 3 rays in flight against the bare triangle
-/// traversal). Returns the number of closest hits found (so callers can check the rays test
+/// work, `Accel::occluded_stream`, and the bare triangle streams at 3 rays in flight, with
+/// prefetching, against the bare triangle traversals). Returns the number of closest hits found (so callers can check the rays test
 /// something).
 fn assert_agree(accel: &Accel, rays: &[Ray], what: &str) -> usize {
     let mut stats = TraceStats::default();
@@ -32,8 +32,14 @@ fn assert_agree(accel: &Accel, rays: &[Ray], what: &str) -> usize {
         .map(|r| traverse_single::intersect(nodes, tris, &mut r.clone(), &mut stats))
         .collect();
     let mut bare3 = vec![None; rays.len()];
-    traverse_single::intersect_stream::<3>(nodes, tris, rays, &mut bare3, &mut stats);
+    traverse_single::intersect_stream::<3, true>(nodes, tris, rays, &mut bare3, &mut stats);
     let single_occ: Vec<bool> = rays.iter().map(|r| accel.occluded(r, &mut stats)).collect();
+    let mut stream_occ = vec![false; rays.len()];
+    accel.occluded_stream(rays, &mut stream_occ, &mut stats);
+    let bare_occ: Vec<bool> =
+        rays.iter().map(|r| traverse_single::occluded(nodes, tris, r, &mut stats)).collect();
+    let mut bare3_occ = vec![false; rays.len()];
+    traverse_single::occluded_stream::<3>(nodes, tris, rays, &mut bare3_occ, &mut stats);
     let mut p4 = vec![None; rays.len()];
     let mut p8 = vec![None; rays.len()];
     accel.intersect_packets::<4>(rays, &mut p4, &mut stats);
@@ -49,6 +55,8 @@ fn assert_agree(accel: &Accel, rays: &[Ray], what: &str) -> usize {
         assert_eq!(s, bits(p4[i]), "{what}: ray {i} {:?}: packet4 differs", rays[i]);
         assert_eq!(s, bits(p8[i]), "{what}: ray {i} {:?}: packet8 differs", rays[i]);
         assert_eq!(single_occ[i], o4[i], "{what}: ray {i} {:?}: packet4 occlusion", rays[i]);
+        assert_eq!(single_occ[i], stream_occ[i], "{what}: ray {i} {:?}: stream occlusion", rays[i]);
+        assert_eq!(bare_occ[i], bare3_occ[i], "{what}: ray {i} {:?}: stream of 3", rays[i]);
         assert_eq!(single_occ[i], o8[i], "{what}: ray {i} {:?}: packet8 occlusion", rays[i]);
     }
     single.iter().flatten().count()

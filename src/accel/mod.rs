@@ -173,9 +173,9 @@ impl Accel {
         stats.rays += rays.len() as u64;
         let (nodes, tris) = (&self.wide_nodes, &self.tris);
         if self.memory_bytes() <= STREAM_LARGE_BYTES {
-            intersect_stream::<STREAM_SMALL>(nodes, tris, rays, hits, stats);
+            intersect_stream::<STREAM_SMALL, false>(nodes, tris, rays, hits, stats);
         } else {
-            intersect_stream::<STREAM_LARGE>(nodes, tris, rays, hits, stats);
+            intersect_stream::<STREAM_LARGE, true>(nodes, tris, rays, hits, stats);
         }
         if !self.spheres.is_empty() {
             for (r, h) in rays.iter().zip(hits.iter_mut()) {
@@ -210,6 +210,25 @@ impl Accel {
         stats.rays += 1;
         traverse_single::occluded(&self.wide_nodes, &self.tris, ray, stats)
             || self.spheres_block(ray, stats)
+    }
+
+    /// Occlusion of any number of rays (`blocked[i]` answers `rays[i]`), the same as
+    /// `occluded` ray by ray. A structure over `STREAM_LARGE_BYTES` keeps several rays in
+    /// flight (`traverse_single::occluded_stream`); a cache-resident one traces them one at a
+    /// time, which measured faster there (PERF.md, "Rays in flight").
+    pub fn occluded_stream(&self, rays: &[Ray], blocked: &mut [bool], stats: &mut TraceStats) {
+        use traverse_single::{occluded_stream, STREAM_LARGE, STREAM_LARGE_BYTES};
+        if self.memory_bytes() <= STREAM_LARGE_BYTES {
+            for (b, r) in blocked.iter_mut().zip(rays) {
+                *b = self.occluded(r, stats);
+            }
+            return;
+        }
+        stats.rays += rays.len() as u64;
+        occluded_stream::<STREAM_LARGE>(&self.wide_nodes, &self.tris, rays, blocked, stats);
+        for (r, b) in rays.iter().zip(blocked.iter_mut()) {
+            *b = *b || self.spheres_block(r, stats);
+        }
     }
 
     fn spheres_block(&self, ray: &Ray, stats: &mut TraceStats) -> bool {

@@ -15,7 +15,7 @@ use super::leaf::{intersect_leaf, occluded_leaf};
 use super::packet::{safe_recip, BOX_INFLATE};
 use super::wide_node::{leaf_range, ChildLanes, WideNode, ARITY, LEAF_BIT};
 use super::TraceStats;
-use crate::geometry::triangles::TriangleSoa;
+use crate::geometry::triangles::{TriangleSoa, LANES};
 use crate::math::{Hit, Ray, Vec3};
 use crate::simd::SimdF32;
 
@@ -118,16 +118,32 @@ impl Entry {
 /// triangle blocks was within the noise.
 #[inline(always)]
 pub(super) fn prefetch_node(nodes: &[WideNode], child: u32) {
-    use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
     if child & LEAF_BIT == 0 {
-        let p = nodes.as_ptr().wrapping_add(child as usize) as *const i8;
+        prefetch(nodes.as_ptr().wrapping_add(child as usize));
+    }
+}
+
+/// Starts loading every cache line of the `T` at `p` (which need not be dereferenceable).
+#[inline(always)]
+fn prefetch<T>(p: *const T) {
+    use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+    let first = p as usize & !63;
+    let last = (p as usize + std::mem::size_of::<T>() - 1) & !63;
+    for line in (first..=last).step_by(64) {
         // SAFETY: a prefetch is a hint that never faults or reads into the program, whatever
         // the address; `sse` is part of the x86_64 baseline.
-        unsafe {
-            for line in 0..std::mem::size_of::<WideNode>() / 64 {
-                _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64 * line));
-            }
-        }
+        unsafe { _mm_prefetch::<_MM_HINT_T0>(line as *const i8) };
+    }
+}
+
+/// Starts loading what visiting `child` reads first: the node, or the leaf's triangle block.
+#[inline(always)]
+fn prefetch_child(nodes: &[WideNode], tris: &TriangleSoa, child: u32) {
+    if child & LEAF_BIT == 0 {
+        prefetch(nodes.as_ptr().wrapping_add(child as usize));
+    } else {
+        let (first, _) = leaf_range(child);
+        prefetch(tris.blocks().as_ptr().wrapping_add(first / LANES));
     }
 }
 
@@ -325,15 +341,18 @@ pub fn occluded_subtree(
     }
 }
 
-/// How many rays `intersect_stream` keeps in flight on one thread: `STREAM_SMALL` for a
-/// structure of at most `STREAM_LARGE_BYTES` (cache-resident on this machine kind), else
-/// `STREAM_LARGE`. Each ray in flight adds a stack and a prepared ray to the working set and
-/// mixes the branch history of the traversal loop, which on a cache-resident scene costs more
-/// than the overlapped latency gives back. Measured (A/B, best of 5x5, diffuse rays, against
-/// one ray at a time; PERF.md, "Rays in flight"): 2 in flight CBbunny 1.02x, maxplanck 1.03x,
-/// 1M tori 1.12x; 4 in flight 0.91x, 1.06x, 1.17x.
+/// How many rays `Accel::intersect_stream` keeps in flight on one thread: `STREAM_SMALL`
+/// for a structure of at most `STREAM_LARGE_BYTES` (cache-resident on this machine kind),
+/// else `STREAM_LARGE`, each ray's next node or leaf prefetched as soon as it is known. Each
+/// ray in flight adds a stack and a prepared ray to the working set and mixes the branch
+/// history of the traversal loop, and each prefetch costs instructions; on a cache-resident
+/// scene that costs more than the overlapped latency gives back. Measured (A/B, best of 5x5,
+/// diffuse rays; PERF.md, "Rays in flight"): against one ray at a time, 2 in flight CBbunny
+/// 1.02x, maxplanck 1.04x, 1M tori 1.12x, and 4 in flight 0.91x, 1.06x, 1.17x; prefetching
+/// with 4 in flight 0.94x and 0.88x on CBbunny and maxplanck, 1.08x on the tori, where 8 in
+/// flight then gave 1.14x over 4 and 16 another 1.03x.
 pub const STREAM_SMALL: usize = 2;
-pub const STREAM_LARGE: usize = 4;
+pub const STREAM_LARGE: usize = 8;
 pub const STREAM_LARGE_BYTES: usize = 16 << 20;
 
 /// One ray's closest-hit traversal as a resumable state, advanced one node or leaf at a time,
@@ -361,13 +380,23 @@ impl ClosestWalk {
     }
 
     /// Visits one node or one leaf, then, if that left nothing to descend into, pops the next
-    /// subtree that can still hold a nearer hit. True when the traversal is over.
+    /// subtree that can still hold a nearer hit. True when the traversal is over. With
+    /// `PREFETCH` the next node or leaf block starts loading at once: the other rays in flight
+    /// take their steps before this one takes its next.
     #[inline(always)]
-    fn step(&mut self, nodes: &[WideNode], tris: &TriangleSoa, stats: &mut TraceStats) -> bool {
+    fn step<const PREFETCH: bool>(
+        &mut self,
+        nodes: &[WideNode],
+        tris: &TriangleSoa,
+        stats: &mut TraceStats,
+    ) -> bool {
         if self.cur.child & LEAF_BIT == 0 {
             let n = &nodes[self.cur.child as usize];
             self.node_tests += n.children() as u64;
             if let Some(next) = descend(nodes, &self.wr, n, self.ray.t_max, &mut self.stack) {
+                if PREFETCH {
+                    prefetch_child(nodes, tris, next.child);
+                }
                 self.cur = next;
                 return false;
             }
@@ -380,6 +409,9 @@ impl ClosestWalk {
                 return true;
             };
             if e.t <= self.ray.t_max * BOX_INFLATE {
+                if PREFETCH {
+                    prefetch_child(nodes, tris, e.child);
+                }
                 self.cur = e;
                 return false;
             }
@@ -391,7 +423,7 @@ impl ClosestWalk {
 /// ray, with `K` rays in flight at once: each step advances every live ray by one node or
 /// leaf, so the core works on one ray while another's next node is on its way from memory.
 /// A ray that finishes hands its place to the next ray of the slice.
-pub fn intersect_stream<const K: usize>(
+pub fn intersect_stream<const K: usize, const PREFETCH: bool>(
     nodes: &[WideNode],
     tris: &TriangleSoa,
     rays: &[Ray],
@@ -423,10 +455,114 @@ pub fn intersect_stream<const K: usize>(
     }
     while live != 0 {
         for (k, w) in walks.iter_mut().enumerate() {
-            if live & (1 << k) == 0 || !w.step(nodes, tris, stats) {
+            if live & (1 << k) == 0 || !w.step::<PREFETCH>(nodes, tris, stats) {
                 continue;
             }
             hits[w.index] = w.best;
+            if next < rays.len() {
+                w.start(&rays[next], next);
+                next += 1;
+            } else {
+                live &= !(1 << k);
+            }
+        }
+    }
+    stats.node_tests += walks.iter().map(|w| w.node_tests).sum::<u64>();
+}
+
+/// One ray's any-hit traversal as a resumable state (`occluded_stream`).
+struct AnyWalk {
+    wr: WideRay,
+    ray: Ray,
+    stack: Stack<u32>,
+    child: u32,
+    node_tests: u64,
+    index: usize,
+}
+
+impl AnyWalk {
+    #[inline(always)]
+    fn start(&mut self, ray: &Ray, index: usize) {
+        self.wr = WideRay::new(ray);
+        self.ray = *ray;
+        self.stack.len = 0;
+        self.child = 0;
+        self.index = index;
+    }
+
+    /// Visits one node or one leaf, and starts loading the next (as `ClosestWalk::step` with
+    /// `PREFETCH`). `Some(blocked)` when the traversal is over.
+    #[inline(always)]
+    fn step(
+        &mut self,
+        nodes: &[WideNode],
+        tris: &TriangleSoa,
+        stats: &mut TraceStats,
+    ) -> Option<bool> {
+        if self.child & LEAF_BIT == 0 {
+            let n = &nodes[self.child as usize];
+            self.node_tests += n.children() as u64;
+            if let Some(next) = descend_any(nodes, &self.wr, n, self.ray.t_max, &mut self.stack) {
+                prefetch_child(nodes, tris, next);
+                self.child = next;
+                return None;
+            }
+        } else {
+            let (first, count) = leaf_range(self.child);
+            if occluded_leaf(tris, first, count, &self.ray, stats) {
+                return Some(true);
+            }
+        }
+        let Some(next) = self.stack.pop() else {
+            return Some(false);
+        };
+        prefetch_child(nodes, tris, next);
+        self.child = next;
+        None
+    }
+}
+
+/// Whether each of `rays` is blocked (`blocked[i]` answers `rays[i]`), the same as `occluded`
+/// ray by ray, with `K` rays in flight at once and their next node or leaf prefetched
+/// (`intersect_stream`).
+pub fn occluded_stream<const K: usize>(
+    nodes: &[WideNode],
+    tris: &TriangleSoa,
+    rays: &[Ray],
+    blocked: &mut [bool],
+    stats: &mut TraceStats,
+) {
+    if nodes.is_empty() {
+        blocked[..rays.len()].fill(false);
+        return;
+    }
+    let blank = || AnyWalk {
+        wr: WideRay::new(&Ray::new(Vec3::ZERO, Vec3::X)),
+        ray: Ray::new(Vec3::ZERO, Vec3::X),
+        stack: Stack::new(),
+        child: 0,
+        node_tests: 0,
+        index: usize::MAX,
+    };
+    let mut walks: [AnyWalk; K] = std::array::from_fn(|_| blank());
+    let mut live = 0u32;
+    let mut next = 0;
+    for (k, w) in walks.iter_mut().enumerate() {
+        if next < rays.len() {
+            w.start(&rays[next], next);
+            next += 1;
+            live |= 1 << k;
+        }
+    }
+    while live != 0 {
+        for (k, w) in walks.iter_mut().enumerate() {
+            if live & (1 << k) == 0 {
+                continue;
+            }
+            let Some(b) = w.step(nodes, tris, stats) else {
+                continue;
+            };
+            blocked[w.index] = b;
             if next < rays.len() {
                 w.start(&rays[next], next);
                 next += 1;

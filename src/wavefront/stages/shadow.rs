@@ -21,11 +21,7 @@ pub fn trace_shadow_rays(
         Coherence::Coherent => {
             ctx.accel.occluded_packets::<PACKET>(&shadow.rays, &mut blocked, stats)
         }
-        Coherence::Incoherent => {
-            for (b, r) in blocked.iter_mut().zip(&shadow.rays) {
-                *b = ctx.accel.occluded(r, stats);
-            }
-        }
+        Coherence::Incoherent => ctx.accel.occluded_stream(&shadow.rays, &mut blocked, stats),
     }
     for (i, _) in blocked.iter().enumerate().filter(|(_, &b)| !b) {
         paths.radiance[shadow.path[i] as usize] += shadow.radiance[i];
