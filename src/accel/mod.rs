@@ -89,6 +89,9 @@ pub struct Accel {
     spheres: Vec<Sphere>,
     bounds: Aabb,
     build_time: Duration,
+    /// Whether the structure outgrows the caches (`traverse_single::STREAM_LARGE_BYTES`):
+    /// then traversal keeps more rays in flight and prefetches leaves too.
+    large: bool,
 }
 
 impl Accel {
@@ -126,13 +129,16 @@ impl Accel {
         let tris = TriangleSoa::from_slots(|i| scene.triangle(i), &slots);
         hugepage::advise(&wide_nodes);
         hugepage::advise(tris.blocks());
-        Accel {
+        let mut accel = Accel {
             wide_nodes,
             tris,
             spheres: scene.spheres.clone(),
             bounds: scene.bounds(),
             build_time: t0.elapsed(),
-        }
+            large: false,
+        };
+        accel.large = accel.memory_bytes() > traverse_single::STREAM_LARGE_BYTES;
+        accel
     }
 
     pub fn build_time(&self) -> Duration {
@@ -169,10 +175,10 @@ impl Accel {
     /// `intersect` ray by ray, with a few rays interleaved on the thread
     /// (`traverse_single::intersect_stream`).
     pub fn intersect_stream(&self, rays: &[Ray], hits: &mut [Option<Hit>], stats: &mut TraceStats) {
-        use traverse_single::{intersect_stream, STREAM_LARGE, STREAM_LARGE_BYTES, STREAM_SMALL};
+        use traverse_single::{intersect_stream, STREAM_LARGE, STREAM_SMALL};
         stats.rays += rays.len() as u64;
         let (nodes, tris) = (&self.wide_nodes, &self.tris);
-        if self.memory_bytes() <= STREAM_LARGE_BYTES {
+        if !self.large {
             intersect_stream::<STREAM_SMALL, false>(nodes, tris, rays, hits, stats);
         } else {
             intersect_stream::<STREAM_LARGE, true>(nodes, tris, rays, hits, stats);
@@ -217,8 +223,8 @@ impl Accel {
     /// flight (`traverse_single::occluded_stream`); a cache-resident one traces them one at a
     /// time, which measured faster there (PERF.md, "Rays in flight").
     pub fn occluded_stream(&self, rays: &[Ray], blocked: &mut [bool], stats: &mut TraceStats) {
-        use traverse_single::{occluded_stream, STREAM_LARGE, STREAM_LARGE_BYTES};
-        if self.memory_bytes() <= STREAM_LARGE_BYTES {
+        use traverse_single::{occluded_stream, STREAM_LARGE};
+        if !self.large {
             for (b, r) in blocked.iter_mut().zip(rays) {
                 *b = self.occluded(r, stats);
             }
@@ -269,8 +275,15 @@ impl Accel {
         let p = &mut packet;
         let active = p.active_bits();
         stats.rays += active.count_ones() as u64;
-        let found =
-            traverse_packet::intersect(&self.wide_nodes, &self.tris, p, fallback, stack, stats);
+        let found = traverse_packet::intersect(
+            &self.wide_nodes,
+            &self.tris,
+            p,
+            fallback,
+            self.large,
+            stack,
+            stats,
+        );
         // Inactive lanes never hit: `found` has no hit bit for them.
         let found = found.all();
         for (i, out) in hits.iter_mut().enumerate().take(W) {
@@ -318,8 +331,15 @@ impl Accel {
     {
         let active = packet.active_bits();
         stats.rays += active.count_ones() as u64;
-        let bits =
-            traverse_packet::occluded(&self.wide_nodes, &self.tris, packet, fallback, stack, stats);
+        let bits = traverse_packet::occluded(
+            &self.wide_nodes,
+            &self.tris,
+            packet,
+            fallback,
+            self.large,
+            stack,
+            stats,
+        );
         for (i, out) in blocked.iter_mut().enumerate().take(W) {
             *out = bits & (1 << i) != 0
                 || (active & (1 << i) != 0 && {

@@ -138,7 +138,7 @@ fn prefetch<T>(p: *const T) {
 
 /// Starts loading what visiting `child` reads first: the node, or the leaf's triangle block.
 #[inline(always)]
-fn prefetch_child(nodes: &[WideNode], tris: &TriangleSoa, child: u32) {
+pub(super) fn prefetch_child(nodes: &[WideNode], tris: &TriangleSoa, child: u32) {
     if child & LEAF_BIT == 0 {
         prefetch(nodes.as_ptr().wrapping_add(child as usize));
     } else {
