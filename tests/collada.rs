@@ -258,3 +258,18 @@ fn a_missing_file_names_the_file() {
     let e = collada::load(std::path::Path::new("/no/such/scene.dae")).unwrap_err().to_string();
     assert!(e.contains("/no/such/scene.dae") && e.contains("cannot read"), "{e}");
 }
+
+/// A scene with more triangles than the acceleration structure can address is refused with
+/// a one-line error when it is validated (the loader validates every scene it returns).
+#[test]
+fn too_many_triangles_is_a_clear_error() {
+    let mut scene = pathtracer::scene::Scene::default();
+    scene.positions = vec![pathtracer::math::Vec3::ZERO; 3];
+    scene.normals = scene.positions.clone();
+    let n = pathtracer::accel::MAX_TRIANGLES + 1;
+    scene.triangles = vec![[0, 1, 2]; n];
+    scene.triangle_materials = vec![0; n];
+    let err = scene.validate().unwrap_err().to_string();
+    assert!(err.contains("at most 16777216"), "{err}");
+    assert!(!err.contains('\n'));
+}

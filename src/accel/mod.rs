@@ -29,7 +29,7 @@ pub use build::BuildParams;
 pub use node::BvhNode;
 pub use packet::RayPacket;
 pub use traverse_packet::PacketStack;
-pub use wide_node::{WideNode, MAX_LEAF};
+pub use wide_node::{WideNode, MAX_LEAF, MAX_TRIANGLES};
 
 /// Largest binary subtree the collapse merges into one wide leaf (`build::collapse`; 0 keeps
 /// the binary leaves). The binary SAH makes leaves of 1.7 triangles on average; the

@@ -11,6 +11,13 @@ pub const MAX_LEAF: usize = 8;
 /// four bits above them.
 const FIRST_BITS: u32 = 27;
 
+/// Most triangles a scene may have (16,777,216; `Scene::validate` refuses more). Leaf
+/// references hold slot indices below `2^FIRST_BITS`, and every 8-slot block holds at least
+/// one triangle (`build::pack_leaves` opens a block for a leaf), so `2^FIRST_BITS / 8`
+/// triangles always fit. (Packing measures about 1.24 slots per triangle, so the bound is
+/// loose; a tighter one would need a proof about the packing, or more bits.)
+pub const MAX_TRIANGLES: usize = 1 << (FIRST_BITS - 3);
+
 /// The reference to a leaf of `count` (1 to `MAX_LEAF`) triangles from `first` on. The count
 /// rides in the reference, so nodes need no count array (32 bytes of 256): PERF.md,
 /// "8-wide nodes".

@@ -78,6 +78,12 @@ impl Scene {
         if self.triangle_materials.len() != self.triangles.len() {
             crate::bail!("material list does not match the triangle list");
         }
+        // The acceleration structure's limit, checked here so that a scene too large for it is
+        // a clear error at load time rather than a failure during the build.
+        let max = crate::accel::MAX_TRIANGLES;
+        if self.triangles.len() > max {
+            crate::bail!("{} triangles: at most {max} are supported", self.triangles.len());
+        }
         if let Some(p) = self.positions.iter().find(|p| !p.is_finite()) {
             crate::bail!("vertex position {p} is not finite");
         }
