@@ -1,5 +1,6 @@
 //! Criterion: the standard ray sets (BENCHMARK.md) on CBbunny, primary / diffuse / shadow x
-//! single / packet4 / packet8, one thread. Skips (with a message) without the course scenes.
+//! single (streamed, as `pathtracer bench` runs it, and one ray at a time) / packet4 /
+//! packet8, one thread. Skips (with a message) without the course scenes.
 //! The `pathtracer bench` command is the reported measurement; this is for quick A/B work:
 //! `cargo bench --bench traversal`.
 
@@ -13,27 +14,34 @@ use pathtracer::accel::{Accel, AccelKind, TraceStats};
 use pathtracer::bench::{generate_ray_sets, triangles_only, RaySet, Traversal};
 use pathtracer::math::Ray;
 
+/// Hits (or blocked rays) of `rays` with `traversal`, as `pathtracer bench` traces them:
+/// single rays as a stream (several in flight per thread), packets `W` rays at a time.
 fn trace(accel: &Accel, rays: &[Ray], set: RaySet, traversal: Traversal) -> u64 {
     let mut stats = TraceStats::default();
+    if traversal == Traversal::Single {
+        return if set.is_occlusion() {
+            let mut blocked = vec![false; rays.len()];
+            accel.occluded_stream(rays, &mut blocked, &mut stats);
+            blocked.iter().filter(|&&b| b).count() as u64
+        } else {
+            let mut hits = vec![None; rays.len()];
+            accel.intersect_stream(rays, &mut hits, &mut stats);
+            hits.iter().flatten().count() as u64
+        };
+    }
     let (mut hits, mut blocked) = ([None; 8], [false; 8]);
     let mut n = 0;
     for group in rays.chunks(traversal.width()) {
         let k = group.len();
         match (traversal, set.is_occlusion()) {
-            (Traversal::Single, true) => blocked[0] = accel.occluded(&group[0], &mut stats),
-            (Traversal::Single, false) => hits[0] = accel.intersect(&group[0], &mut stats),
             (Traversal::Packet4, true) => {
                 accel.occluded_packet::<4>(group, &mut blocked, &mut stats)
             }
             (Traversal::Packet4, false) => {
                 accel.intersect_packet::<4>(group, &mut hits, &mut stats)
             }
-            (Traversal::Packet8, true) => {
-                accel.occluded_packet::<8>(group, &mut blocked, &mut stats)
-            }
-            (Traversal::Packet8, false) => {
-                accel.intersect_packet::<8>(group, &mut hits, &mut stats)
-            }
+            (_, true) => accel.occluded_packet::<8>(group, &mut blocked, &mut stats),
+            (_, false) => accel.intersect_packet::<8>(group, &mut hits, &mut stats),
         }
         n += if set.is_occlusion() {
             blocked[..k].iter().filter(|&&b| b).count()
@@ -42,6 +50,16 @@ fn trace(accel: &Accel, rays: &[Ray], set: RaySet, traversal: Traversal) -> u64 
         } as u64;
     }
     n
+}
+
+/// Single rays one at a time (`Accel::intersect` / `occluded`), for comparison with the stream.
+fn trace_one_at_a_time(accel: &Accel, rays: &[Ray], set: RaySet) -> u64 {
+    let mut stats = TraceStats::default();
+    if set.is_occlusion() {
+        rays.iter().filter(|r| accel.occluded(r, &mut stats)).count() as u64
+    } else {
+        rays.iter().filter(|r| accel.intersect(r, &mut stats).is_some()).count() as u64
+    }
 }
 
 fn traversal(c: &mut Criterion) {
@@ -57,6 +75,9 @@ fn traversal(c: &mut Criterion) {
         for t in Traversal::ALL {
             g.bench_function(t.name(), |b| b.iter(|| trace(&accel, black_box(rays), set, t)));
         }
+        g.bench_function("single, one at a time", |b| {
+            b.iter(|| trace_one_at_a_time(&accel, black_box(rays), set))
+        });
         g.finish();
     }
 }
