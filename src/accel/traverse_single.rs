@@ -1,6 +1,8 @@
 //! One ray through the wide BVH (`wide_node`): closest hit and any hit, with one `ChildLanes`
 //! slab test for the eight children of a node, hit children visited nearest first, a fixed
-//! stack, and leaves tested 8 triangles at a time (`leaf`).
+//! stack, and leaves tested 8 triangles at a time (`leaf`). The same traversal also runs as
+//! resumable walks, several rays in flight per thread (`intersect_stream`, `occluded_stream`),
+//! so that one ray's node loads overlap another's tests.
 //!
 //! Hits are the same as packet traversal's (`traverse_packet`): each lane of the box test
 //! computes exactly what a packet lane computes for that box (the same subtractions and
