@@ -41,6 +41,29 @@ pub fn safe_recip_v<V: SimdF32>(d: V) -> V {
     V::splat(1.0) / V::select(tiny, signed_min, d)
 }
 
+/// Slab distances are `fma(plane, inv, -origin * inv)`: one fused multiply-add per plane
+/// instead of a subtraction and a product. Its error is not relative to the distance alone:
+/// the rounding of `origin * inv` adds up to half an ulp of `|origin * inv|`, which for a ray
+/// far from the origin of coordinates can exceed the distance itself (without a margin for it,
+/// `tests/watertight.rs` leaked a ray on a flat leaf box: PERF.md, "Tried, did not help"). So
+/// every box test widens the slab interval by `slack` on both sides, `SLACK` times the largest
+/// `|origin * inv|` over the axes (`slab_terms`), and the entry distance it reports (which
+/// the leaf test's front-of-box rule compares hits against) is the widened one. The exit
+/// distance keeps its relative tolerance `BOX_INFLATE` for the rest of the rounding.
+/// Measured (PERF.md, "Fused slab test"): packet8 primary rays 1.07-1.08x.
+pub const SLACK: f32 = 2.0 * f32::EPSILON;
+
+/// The per-ray terms of the fused slab test, lane by lane the same at every width (so single
+/// rays, which compute them on broadcast lanes, agree with packets bit for bit): `-origin *
+/// inv` per axis, and the slack.
+#[inline(always)]
+pub fn slab_terms<V: SimdF32>(origin: &V3<V>, inv: &V3<V>) -> (V3<V>, V) {
+    let (x, y, z) = (origin.x * inv.x, origin.y * inv.y, origin.z * inv.z);
+    let slack = x.abs().fast_max(y.abs()).fast_max(z.abs()) * V::splat(SLACK);
+    let m = V::splat(-1.0);
+    (V3 { x: x * m, y: y * m, z: z * m }, slack)
+}
+
 /// W rays, SoA.
 #[derive(Clone, Copy, Debug)]
 pub struct RayPacket<V: SimdF32> {
@@ -48,6 +71,9 @@ pub struct RayPacket<V: SimdF32> {
     pub dir: V3<V>,
     /// `safe_recip` of each direction component.
     pub inv_dir: V3<V>,
+    /// `-origin * inv_dir` per axis and the slab slack (`slab_terms`).
+    pub neg_o_inv: V3<V>,
+    pub slack: V,
     pub t_min: V,
     pub t_max: V,
     /// Lane mask: all-ones for rays to trace.
@@ -71,10 +97,15 @@ impl<V: SimdF32> RayPacket<V> {
         });
         let dir = V3 { x: dx, y: dy, z: dz };
         let filled = if n >= 32 { !0 } else { (1u32 << n) - 1 };
+        let origin = V3 { x: ox, y: oy, z: oz };
+        let inv_dir = V3 { x: safe_recip_v(dir.x), y: safe_recip_v(dir.y), z: safe_recip_v(dir.z) };
+        let (neg_o_inv, slack) = slab_terms(&origin, &inv_dir);
         RayPacket {
-            origin: V3 { x: ox, y: oy, z: oz },
+            origin,
             dir,
-            inv_dir: V3 { x: safe_recip_v(dir.x), y: safe_recip_v(dir.y), z: safe_recip_v(dir.z) },
+            inv_dir,
+            neg_o_inv,
+            slack,
             t_min,
             t_max,
             active: V::from_bitmask(filled & active_bits),

@@ -54,17 +54,17 @@ fn child_box(n: &WideNode, i: usize) -> ([f32; 3], [f32; 3]) {
 /// for the finite reciprocals `safe_recip` gives).
 #[inline(always)]
 fn slab<V: SimdF32>(p: &RayPacket<V>, min: [f32; 3], max: [f32; 3], t_max: V) -> (V, V) {
-    let (o, inv) = (&p.origin, &p.inv_dir);
-    let x0 = (V::splat(min[0]) - o.x) * inv.x;
-    let x1 = (V::splat(max[0]) - o.x) * inv.x;
-    let y0 = (V::splat(min[1]) - o.y) * inv.y;
-    let y1 = (V::splat(max[1]) - o.y) * inv.y;
-    let z0 = (V::splat(min[2]) - o.z) * inv.z;
-    let z1 = (V::splat(max[2]) - o.z) * inv.z;
-    let near =
-        x0.fast_min(x1).fast_max(y0.fast_min(y1)).fast_max(z0.fast_min(z1)).fast_max(p.t_min);
-    let far = x0.fast_max(x1).fast_min(y0.fast_max(y1)).fast_min(z0.fast_max(z1)).fast_min(t_max)
-        * V::splat(BOX_INFLATE);
+    let (c, inv) = (&p.neg_o_inv, &p.inv_dir);
+    let x0 = V::splat(min[0]).mul_add(inv.x, c.x);
+    let x1 = V::splat(max[0]).mul_add(inv.x, c.x);
+    let y0 = V::splat(min[1]).mul_add(inv.y, c.y);
+    let y1 = V::splat(max[1]).mul_add(inv.y, c.y);
+    let z0 = V::splat(min[2]).mul_add(inv.z, c.z);
+    let z1 = V::splat(max[2]).mul_add(inv.z, c.z);
+    let near = x0.fast_min(x1).fast_max(y0.fast_min(y1)).fast_max(z0.fast_min(z1));
+    let near = near.fast_max(p.t_min) - p.slack;
+    let far = x0.fast_max(x1).fast_min(y0.fast_max(y1)).fast_min(z0.fast_max(z1)).fast_min(t_max);
+    let far = far.mul_add(V::splat(BOX_INFLATE), p.slack);
     (near.simd_le(far), near)
 }
 

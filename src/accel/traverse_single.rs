@@ -5,8 +5,8 @@
 //! so that one ray's node loads overlap another's tests.
 //!
 //! Hits are the same as packet traversal's (`traverse_packet`): each lane of the box test
-//! computes exactly what a packet lane computes for that box (the same subtractions and
-//! products, no fused multiply-add, the same `BOX_INFLATE` tolerance), the leaves run the same
+//! computes exactly what a packet lane computes for that box (the same fused multiply-adds on
+//! the same per-ray terms, `packet::slab_terms`, the same tolerances), the leaves run the same
 //! triangle test, hits are ordered by (t, prim), and hits in front of their leaf box do not count
 //! (`leaf`), which removes the one way the visiting order could change the answer.
 
@@ -14,9 +14,10 @@ use std::mem::MaybeUninit;
 
 use super::build::MAX_DEPTH;
 use super::leaf::{intersect_leaf, occluded_leaf};
-use super::packet::{safe_recip, BOX_INFLATE};
+use super::packet::{safe_recip, slab_terms, BOX_INFLATE};
 use super::wide_node::{leaf_range, ChildLanes, WideNode, ARITY, LEAF_BIT};
 use super::TraceStats;
+use crate::geometry::moller_trumbore::V3;
 use crate::geometry::triangles::{TriangleSoa, LANES};
 use crate::math::{Hit, Ray, Vec3};
 use crate::simd::SimdF32;
@@ -25,11 +26,13 @@ use crate::simd::SimdF32;
 /// `ARITY - 1` siblings.
 const STACK: usize = (ARITY - 1) * MAX_DEPTH + 1;
 
-/// A ray prepared for wide box tests: origin and reciprocal direction broadcast, and per
-/// axis whether the direction is negative (then the box maximum is the near plane).
+/// A ray prepared for wide box tests: reciprocal direction and the fused slab test's terms
+/// (`packet::slab_terms`) broadcast, and per axis whether the direction is negative (then the
+/// box maximum is the near plane).
 pub(super) struct WideRay {
-    origin: [ChildLanes; 3],
     inv_dir: [ChildLanes; 3],
+    neg_o_inv: [ChildLanes; 3],
+    slack: ChildLanes,
     neg: [bool; 3],
     t_min: ChildLanes,
 }
@@ -38,9 +41,17 @@ impl WideRay {
     #[inline(always)]
     pub(super) fn new(ray: &Ray) -> WideRay {
         let inv = [safe_recip(ray.dir.x), safe_recip(ray.dir.y), safe_recip(ray.dir.z)];
+        let splat = |v: [f32; 3]| V3 {
+            x: ChildLanes::splat(v[0]),
+            y: ChildLanes::splat(v[1]),
+            z: ChildLanes::splat(v[2]),
+        };
+        let inv_v = splat(inv);
+        let (c, slack) = slab_terms(&splat([ray.origin.x, ray.origin.y, ray.origin.z]), &inv_v);
         WideRay {
-            origin: [ray.origin.x, ray.origin.y, ray.origin.z].map(ChildLanes::splat),
-            inv_dir: inv.map(ChildLanes::splat),
+            inv_dir: [inv_v.x, inv_v.y, inv_v.z],
+            neg_o_inv: [c.x, c.y, c.z],
+            slack,
             neg: inv.map(f32::is_sign_negative),
             t_min: ChildLanes::splat(ray.t_min),
         }
@@ -55,13 +66,13 @@ impl WideRay {
         let plane = |axis: usize, max: bool| {
             // `max as usize` is 0 or 1, so the row index is provably in bounds.
             let row = ChildLanes::new(n.bounds[2 * axis + max as usize]);
-            (row - self.origin[axis]) * self.inv_dir[axis]
+            row.mul_add(self.inv_dir[axis], self.neg_o_inv[axis])
         };
         let near = |axis: usize| plane(axis, self.neg[axis]);
         let far = |axis: usize| plane(axis, !self.neg[axis]);
-        let t_near = near(0).fast_max(near(1)).fast_max(near(2)).fast_max(self.t_min);
-        let t_far = far(0).fast_min(far(1)).fast_min(far(2)).fast_min(ChildLanes::splat(t_max))
-            * ChildLanes::splat(BOX_INFLATE);
+        let t_near = near(0).fast_max(near(1)).fast_max(near(2)).fast_max(self.t_min) - self.slack;
+        let t_far = far(0).fast_min(far(1)).fast_min(far(2)).fast_min(ChildLanes::splat(t_max));
+        let t_far = t_far.mul_add(ChildLanes::splat(BOX_INFLATE), self.slack);
         (t_near, t_near.simd_le(t_far).bitmask())
     }
 }

@@ -43,6 +43,9 @@ pub trait SimdF32:
     /// NaN for finite input.
     fn fast_min(self, b: Self) -> Self;
     fn fast_max(self, b: Self) -> Self;
+    /// `self * a + b`, fused (one rounding) on the FMA targets the crate is built for
+    /// (`.cargo/config.toml`), at both widths alike, so that lanes of either width agree.
+    fn mul_add(self, a: Self, b: Self) -> Self;
     /// `mask ? t : f` per lane.
     fn select(mask: Self, t: Self, f: Self) -> Self;
     /// Bit `i` set iff lane `i` of the mask is set.
@@ -121,6 +124,10 @@ macro_rules! impl_simd_f32 {
             #[inline(always)]
             fn fast_max(self, b: Self) -> Self {
                 $t::fast_max(self, b)
+            }
+            #[inline(always)]
+            fn mul_add(self, a: Self, b: Self) -> Self {
+                $t::mul_add(self, a, b)
             }
             #[inline(always)]
             fn select(mask: Self, t: Self, f: Self) -> Self {
