@@ -1,6 +1,6 @@
 //! Acceleration structure: the public surface every stage uses.
 //!
-//! Triangles live in SoA blocks of eight in leaf order under one flat 8-wide BVH (256-byte
+//! Triangles live in SoA blocks of eight in leaf order under one flat 8-wide BVH (224-byte
 //! nodes, one SIMD test for eight boxes), collapsed from a binned-SAH binary BVH that is
 //! dropped once collapsed. Single rays and packets traverse the same wide tree, so the
 //! structure is the wide nodes plus the triangle blocks. The course scenes hold at most a handful of analytic

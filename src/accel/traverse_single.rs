@@ -153,7 +153,7 @@ fn prefetch<T>(p: *const T) {
 #[inline(always)]
 pub(super) fn prefetch_child(nodes: &[WideNode], tris: &TriangleSoa, child: u32) {
     if child & LEAF_BIT == 0 {
-        prefetch(nodes.as_ptr().wrapping_add(child as usize));
+        prefetch_node(nodes, child);
     } else {
         let (first, _) = leaf_range(child);
         prefetch(tris.blocks().as_ptr().wrapping_add(first / LANES));
@@ -537,7 +537,9 @@ impl AnyWalk {
 
 /// Whether each of `rays` is blocked (`blocked[i]` answers `rays[i]`), the same as `occluded`
 /// ray by ray, with `K` rays in flight at once and their next node or leaf prefetched
-/// (`intersect_stream`).
+/// (`intersect_stream`). Its scheduling loop is `intersect_stream`'s: one generic driver over
+/// a walk trait measured 0.95-0.99x on the 1M tori's shadow rays (A/B, best of 5x5), so each
+/// stream keeps its own copy.
 pub fn occluded_stream<const K: usize>(
     nodes: &[WideNode],
     tris: &TriangleSoa,
