@@ -195,17 +195,21 @@ pub enum Traversal {
     Single,
     Packet4,
     Packet8,
+    /// 16 rays per packet as two 8-wide halves (`simd::F32x16`).
+    Packet16,
 }
 
 impl Traversal {
     /// The traversals a benchmark runs by default, and every one `--traversal` accepts.
-    pub const ALL: [Traversal; 3] = [Traversal::Single, Traversal::Packet4, Traversal::Packet8];
+    pub const ALL: [Traversal; 4] =
+        [Traversal::Single, Traversal::Packet4, Traversal::Packet8, Traversal::Packet16];
 
     pub fn name(self) -> &'static str {
         match self {
             Traversal::Single => "single",
             Traversal::Packet4 => "packet4",
             Traversal::Packet8 => "packet8",
+            Traversal::Packet16 => "packet16",
         }
     }
 
@@ -220,13 +224,14 @@ impl Traversal {
             Traversal::Single => 1,
             Traversal::Packet4 => 4,
             Traversal::Packet8 => 8,
+            Traversal::Packet16 => 16,
         }
     }
 
     pub fn parse(s: &str) -> crate::Result<Traversal> {
         Traversal::ALL.into_iter().find(|t| t.name() == s).ok_or_else(|| {
             crate::Error::new(format!(
-                "unknown traversal '{s}' (expected single, packet4 or packet8)"
+                "unknown traversal '{s}' (expected single, packet4, packet8 or packet16)"
             ))
         })
     }
@@ -259,6 +264,7 @@ impl TraceTotals {
 pub fn packet_order(set: RaySet, traversal: Traversal, rays: &[Ray]) -> Option<Vec<Ray>> {
     let (w, h) = (WIDTH as usize, HEIGHT as usize);
     let (bw, bh) = match traversal.width() {
+        16 => (4, 4),
         8 => (4, 2),
         4 => (2, 2),
         _ => return None,
@@ -321,6 +327,9 @@ fn trace_chunk(
             Traversal::Packet8 => {
                 accel.occluded_packets_with::<8>(rays, fallback, &mut blocked, stats)
             }
+            Traversal::Packet16 => {
+                accel.occluded_packets_with::<16>(rays, fallback, &mut blocked, stats)
+            }
         }
         out.hits = blocked.iter().filter(|&&b| b).count() as u64;
     } else {
@@ -332,6 +341,9 @@ fn trace_chunk(
             }
             Traversal::Packet8 => {
                 accel.intersect_packets_with::<8>(rays, fallback, &mut hits, stats)
+            }
+            Traversal::Packet16 => {
+                accel.intersect_packets_with::<16>(rays, fallback, &mut hits, stats)
             }
         }
         for h in hits.iter().flatten() {

@@ -10,7 +10,7 @@ use crate::math::{Hit, Ray, Vec3};
 use crate::simd::SimdF32;
 
 /// Widest packet: bounds the per-lane scratch arrays.
-pub const MAX_W: usize = 8;
+pub const MAX_W: usize = 16;
 
 /// Direction components smaller than this in magnitude are replaced by it (keeping the sign)
 /// before taking reciprocals, as Embree's `rcp_safe` does: the slab test then never computes
