@@ -11,6 +11,7 @@ mod hugepage;
 mod leaf;
 pub mod node;
 pub mod packet;
+mod packet_interval;
 pub mod traverse_packet;
 pub mod traverse_single;
 pub mod wide_node;
@@ -285,21 +286,22 @@ impl Accel {
             stats,
         );
         // Inactive lanes never hit: `found` has no hit bit for them.
-        let found = found.all();
-        for (i, out) in hits.iter_mut().enumerate().take(W) {
-            let mut best = found[i];
-            if active & (1 << i) != 0 && !self.spheres.is_empty() {
-                // The spheres after the triangles, in the order `intersect` tests them.
-                let mut r = p.ray(i);
-                for (k, s) in self.spheres.iter().enumerate() {
-                    stats.sphere_tests += 1;
-                    if let Some(t) = intersect_sphere(&r, s) {
-                        r.t_max = t;
-                        best = Some(Hit { t, u: 0.0, v: 0.0, prim: SPHERE_BIT | k as u32 });
-                    }
+        let n = hits.len().min(W);
+        let hits = &mut hits[..n];
+        found.write_to(hits);
+        if self.spheres.is_empty() {
+            return;
+        }
+        // The spheres after the triangles, in the order `intersect` tests them.
+        for (i, best) in hits.iter_mut().enumerate().filter(|(i, _)| active & (1 << i) != 0) {
+            let mut r = p.ray(i);
+            for (k, s) in self.spheres.iter().enumerate() {
+                stats.sphere_tests += 1;
+                if let Some(t) = intersect_sphere(&r, s) {
+                    r.t_max = t;
+                    *best = Some(Hit { t, u: 0.0, v: 0.0, prim: SPHERE_BIT | k as u32 });
                 }
             }
-            *out = best;
         }
     }
 

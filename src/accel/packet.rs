@@ -148,22 +148,23 @@ impl<V: SimdF32> PacketHits<V> {
         }
     }
 
-    /// Every lane's hit (`None` past `W` and where nothing was hit), with one store per
-    /// vector rather than one per lane and field.
+    /// Writes lane `i`'s hit (`None` where nothing was hit) to `out[i]` for the first
+    /// `out.len()` (at most `W`) lanes, with one store per vector rather than one per lane and
+    /// field, and no `MAX_W`-long temporary.
     #[inline(always)]
-    pub fn all(&self) -> [Option<Hit>; MAX_W] {
+    pub fn write_to(&self, out: &mut [Option<Hit>]) {
         let (mut t, mut u, mut v) = ([0.0; MAX_W], [0.0; MAX_W], [0.0; MAX_W]);
         self.t.store(&mut t);
         self.u.store(&mut u);
         self.v.store(&mut v);
-        std::array::from_fn(|i| {
-            (self.hit_bits & (1 << i) != 0).then(|| Hit {
+        for (i, o) in out.iter_mut().enumerate().take(V::W) {
+            *o = (self.hit_bits & (1 << i) != 0).then(|| Hit {
                 t: t[i],
                 u: u[i],
                 v: v[i],
                 prim: self.prim[i],
-            })
-        })
+            });
+        }
     }
 
     pub fn get(&self, i: usize) -> Option<Hit> {

@@ -17,6 +17,7 @@
 use super::build::MAX_DEPTH;
 use super::leaf;
 use super::packet::{PacketHits, RayPacket, BOX_INFLATE, MAX_W};
+use super::packet_interval::PacketInterval;
 use super::traverse_single::{self, Entry as SingleEntry};
 use super::wide_node::{leaf_range, WideNode, ARITY, LEAF_BIT};
 use super::TraceStats;
@@ -133,15 +134,17 @@ impl<V: SimdF32> Entered<V> {
     }
 }
 
-/// The children of node `n` that some of `lanes` enter. All child boxes are tested first,
-/// without a branch on the outcome, and only the entered ones are then sorted: a branch per
-/// child on whether any lane entered it was the hottest spot of packet traversal (`perf`
-/// on maxplanck primary rays; PERF.md, "8-wide nodes").
+/// The children of node `n` that some of `lanes` enter. Only the children the packet's
+/// interval pre-test passes (`packet_interval`; all used slots without one) get the exact
+/// per-lane test, all of them before any branch on the outcome; then only the entered ones
+/// are sorted: a branch per child on whether any lane entered it was the hottest spot of
+/// packet traversal (`perf` on maxplanck primary rays; PERF.md, "8-wide nodes").
 #[inline(always)]
 fn entered_children<V: SimdF32>(
     p: &RayPacket<V>,
     n: &WideNode,
     lanes: u32,
+    interval: Option<&PacketInterval>,
     stats: &mut TraceStats,
 ) -> Entered<V> {
     let mut e = Entered {
@@ -152,15 +155,23 @@ fn entered_children<V: SimdF32>(
         k: 0,
     };
     let used = n.children();
+    let mut candidates = (1u32 << used) - 1;
+    if let Some(iv) = interval {
+        candidates &= iv.may_enter(n);
+        stats.node_tests += used as u64;
+    }
+    stats.node_tests += candidates.count_ones() as u64 * lanes.count_ones() as u64;
     let mut hit = 0u32;
-    for i in 0..used {
+    let mut bits = candidates;
+    while bits != 0 {
+        let i = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
         let (min, max) = child_box(n, i);
         let (m, near) = slab(p, min, max, p.t_max);
         let entered = m.bitmask() & lanes;
         (e.near[i], e.lanes[i]) = (near, entered);
         hit |= ((entered != 0) as u32) << i;
     }
-    stats.node_tests += used as u64 * lanes.count_ones() as u64;
     // Insertion into the farthest-first order.
     while hit != 0 {
         let i = hit.trailing_zeros() as usize;
@@ -207,6 +218,7 @@ pub fn intersect<V: SimdF32>(
     if nodes.is_empty() || active == 0 {
         return hits;
     }
+    let interval = PacketInterval::new(p, active);
     let stack = &mut stack.closest;
     stack.clear();
     let mut cur = Entry { child: 0, lanes: active, near: p.t_min };
@@ -227,7 +239,7 @@ pub fn intersect<V: SimdF32>(
                 }
             } else {
                 let n = &nodes[cur.child as usize];
-                let e = entered_children(p, n, lanes, stats);
+                let e = entered_children(p, n, lanes, interval.as_ref(), stats);
                 if e.k > 0 {
                     // Pushed subtrees start loading now, as in single-ray traversal.
                     stack.extend((0..e.k - 1).map(|j| {
@@ -385,6 +397,7 @@ pub fn occluded<V: SimdF32>(
     if nodes.is_empty() || active == 0 {
         return 0;
     }
+    let interval = PacketInterval::new(p, active);
     let mut blocked = 0u32;
     let stack = &mut stack.any;
     stack.clear();
@@ -410,7 +423,7 @@ pub fn occluded<V: SimdF32>(
                 }
             } else {
                 let n = &nodes[child as usize];
-                let e = entered_children(p, n, lanes, stats);
+                let e = entered_children(p, n, lanes, interval.as_ref(), stats);
                 if e.k > 0 {
                     // Farthest first: push in reverse of the farthest-first order.
                     for j in (1..e.k).rev() {

@@ -65,6 +65,8 @@ pub struct WideNode {
 
 const _: () = assert!(std::mem::size_of::<WideNode>() == 28 * ARITY);
 const _: () = assert!(std::mem::align_of::<WideNode>() == 32);
+// `children` compares the references as one `u32x8`.
+const _: () = assert!(ARITY == 8);
 
 impl WideNode {
     /// A node with every slot empty.
@@ -89,10 +91,13 @@ impl WideNode {
         self.child[i] = child;
     }
 
-    /// Number of used slots (children are packed from slot 0).
+    /// Number of used slots (children are packed from slot 0): one compare of the eight
+    /// references and a popcount (a filtered count compiled to a bit-by-bit sum of 40
+    /// instructions, once per node visit).
     #[inline(always)]
     pub fn children(&self) -> usize {
-        self.child.iter().filter(|&&c| c != EMPTY).count()
+        let empty = wide::u32x8::new(self.child).simd_eq(wide::u32x8::splat(EMPTY));
+        ARITY - empty.to_bitmask().count_ones() as usize
     }
 }
 

@@ -64,6 +64,13 @@ pub trait SimdF32:
     /// is value `k` of row `i` (0 for lanes `n..W`). Gathers 32-byte ray records into a packet
     /// with shuffles instead of 8 W scalar moves.
     fn columns8(n: usize, row: impl Fn(usize) -> [f32; 8]) -> [Self; 8];
+
+    /// The smallest lane of each of 8 vectors (`fast_min` semantics), with one transpose and
+    /// seven vector minima rather than eight lane-by-lane folds.
+    fn min_of_rows(rows: [Self; 8]) -> [f32; 8];
+
+    /// The largest lane of each of 8 vectors (`fast_max` semantics), as `min_of_rows`.
+    fn max_of_rows(rows: [Self; 8]) -> [f32; 8];
 }
 
 /// All bits set: a true mask lane.
@@ -144,6 +151,14 @@ macro_rules! impl_simd_f32 {
             #[inline(always)]
             fn from_bitmask(bits: u32) -> Self {
                 $t::new(std::array::from_fn(|i| if bits & (1 << i) != 0 { TRUE } else { 0.0 }))
+            }
+            #[inline(always)]
+            fn min_of_rows(rows: [Self; 8]) -> [f32; 8] {
+                <$t as Columns8>::fold_rows(rows, $t::fast_min)
+            }
+            #[inline(always)]
+            fn max_of_rows(rows: [Self; 8]) -> [f32; 8] {
+                <$t as Columns8>::fold_rows(rows, $t::fast_max)
             }
         }
     };
@@ -267,6 +282,14 @@ impl SimdF32 for F32x16 {
         let hi = f32x8::columns8(n.saturating_sub(8), |i| row(i + 8));
         std::array::from_fn(|k| F32x16 { lo: lo[k], hi: hi[k] })
     }
+    #[inline(always)]
+    fn min_of_rows(rows: [Self; 8]) -> [f32; 8] {
+        f32x8::min_of_rows(rows.map(|r| r.lo.fast_min(r.hi)))
+    }
+    #[inline(always)]
+    fn max_of_rows(rows: [Self; 8]) -> [f32; 8] {
+        f32x8::max_of_rows(rows.map(|r| r.lo.fast_max(r.hi)))
+    }
 }
 
 impl Columns8 for f32x8 {
@@ -274,6 +297,13 @@ impl Columns8 for f32x8 {
     fn columns8_impl(n: usize, row: impl Fn(usize) -> [f32; 8]) -> [f32x8; 8] {
         let rows = std::array::from_fn(|i| if i < n { f32x8::new(row(i)) } else { f32x8::ZERO });
         f32x8::transpose(rows)
+    }
+
+    #[inline(always)]
+    fn fold_rows(rows: [f32x8; 8], f: impl Fn(f32x8, f32x8) -> f32x8) -> [f32; 8] {
+        // Column k of the transpose holds lane k of every row.
+        let c = f32x8::transpose(rows);
+        f(f(f(c[0], c[1]), f(c[2], c[3])), f(f(c[4], c[5]), f(c[6], c[7]))).to_array()
     }
 }
 
@@ -289,11 +319,26 @@ impl Columns8 for f32x4 {
         let (a, b) = (f32x4::transpose(lo), f32x4::transpose(hi));
         [a[0], a[1], a[2], a[3], b[0], b[1], b[2], b[3]]
     }
+
+    #[inline(always)]
+    fn fold_rows(rows: [f32x4; 8], f: impl Fn(f32x4, f32x4) -> f32x4) -> [f32; 8] {
+        let half = |r: [f32x4; 4]| {
+            let c = f32x4::transpose(r);
+            f(f(c[0], c[1]), f(c[2], c[3])).to_array()
+        };
+        let (a, b) = (
+            half([rows[0], rows[1], rows[2], rows[3]]),
+            half([rows[4], rows[5], rows[6], rows[7]]),
+        );
+        [a[0], a[1], a[2], a[3], b[0], b[1], b[2], b[3]]
+    }
 }
 
 /// The width-specific transpose behind `SimdF32::columns8`.
 trait Columns8: Sized {
     fn columns8_impl(n: usize, row: impl Fn(usize) -> [f32; 8]) -> [Self; 8];
+    /// Folds each of 8 vectors' lanes with `f` (after a transpose, one vector op per step).
+    fn fold_rows(rows: [Self; 8], f: impl Fn(Self, Self) -> Self) -> [f32; 8];
 }
 
 /// Maps a packet width to its lane type: `Lanes<4>` is `f32x4`, `Lanes<8>` is `f32x8`. Public
@@ -346,6 +391,28 @@ mod tests {
                 assert_eq!(col.lane(i), want, "column {k} lane {i}");
             }
         }
+    }
+
+    fn row_minima<V: SimdF32>() {
+        let rows: [V; 8] = std::array::from_fn(|i| {
+            let vals: Vec<f32> =
+                (0..V::W).map(|k| ((7 * i + 3 * k) % 11) as f32 - i as f32).collect();
+            V::load(&vals)
+        });
+        let (lo, hi) = (V::min_of_rows(rows), V::max_of_rows(rows));
+        for (i, r) in rows.iter().enumerate() {
+            let want = (0..V::W).map(|k| r.lane(k)).fold(f32::INFINITY, f32::min);
+            assert_eq!(lo[i], want, "row {i}");
+            let want = (0..V::W).map(|k| r.lane(k)).fold(f32::NEG_INFINITY, f32::max);
+            assert_eq!(hi[i], want, "row {i}");
+        }
+    }
+
+    #[test]
+    fn row_minima_at_every_width() {
+        row_minima::<f32x4>();
+        row_minima::<f32x8>();
+        row_minima::<F32x16>();
     }
 
     #[test]
