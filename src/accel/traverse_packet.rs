@@ -123,9 +123,35 @@ struct Entered<V> {
     /// Slots, farthest first; the first `k` are entered.
     order: [u8; ARITY],
     k: usize,
+    /// Bit `i` set iff some lane entered slot `i`.
+    hit: u32,
 }
 
 impl<V: SimdF32> Entered<V> {
+    /// Scratch for one traversal, reused at every node: only the slots entered at the
+    /// current node are read, and `entered_children` writes them first (returning a fresh
+    /// one per node cost a zeroing and, once, a 400-byte copy per node).
+    fn new() -> Entered<V> {
+        Entered {
+            near: [V::splat(0.0); ARITY],
+            lanes: [0; ARITY],
+            key: [0.0; ARITY],
+            order: [0; ARITY],
+            k: 0,
+            hit: 0,
+        }
+    }
+
+    /// The exact per-lane test of child slot `i` of `n`: which of `lanes` enter it, and where.
+    #[inline(always)]
+    fn test_child(&mut self, p: &RayPacket<V>, n: &WideNode, i: usize, lanes: u32) {
+        let (min, max) = child_box(n, i);
+        let (m, near) = slab(p, min, max, p.t_max);
+        let entered = m.bitmask() & lanes;
+        (self.near[i], self.lanes[i]) = (near, entered);
+        self.hit |= ((entered != 0) as u32) << i;
+    }
+
     /// The `j`-th entered child of `n` in farthest-first order.
     #[inline(always)]
     fn entry(&self, n: &WideNode, j: usize) -> Entry<V> {
@@ -145,33 +171,31 @@ fn entered_children<V: SimdF32>(
     n: &WideNode,
     lanes: u32,
     interval: Option<&PacketInterval>,
+    e: &mut Entered<V>,
     stats: &mut TraceStats,
-) -> Entered<V> {
-    let mut e = Entered {
-        near: [V::splat(0.0); ARITY],
-        lanes: [0; ARITY],
-        key: [0.0; ARITY],
-        order: [0; ARITY],
-        k: 0,
-    };
+) {
+    (e.k, e.hit) = (0, 0);
     let used = n.children();
-    let mut candidates = (1u32 << used) - 1;
-    if let Some(iv) = interval {
-        candidates &= iv.may_enter(n);
-        stats.node_tests += used as u64;
+    match interval {
+        Some(iv) => {
+            let mut candidates = iv.may_enter(n) & ((1u32 << used) - 1);
+            stats.node_tests +=
+                used as u64 + candidates.count_ones() as u64 * lanes.count_ones() as u64;
+            while candidates != 0 {
+                e.test_child(p, n, candidates.trailing_zeros() as usize, lanes);
+                candidates &= candidates - 1;
+            }
+        }
+        None => {
+            // A counted loop over the used slots: measured 1.07x on shadow packets against
+            // the loop over candidate bits above with every used slot a candidate.
+            stats.node_tests += used as u64 * lanes.count_ones() as u64;
+            for i in 0..used {
+                e.test_child(p, n, i, lanes);
+            }
+        }
     }
-    stats.node_tests += candidates.count_ones() as u64 * lanes.count_ones() as u64;
-    let mut hit = 0u32;
-    let mut bits = candidates;
-    while bits != 0 {
-        let i = bits.trailing_zeros() as usize;
-        bits &= bits - 1;
-        let (min, max) = child_box(n, i);
-        let (m, near) = slab(p, min, max, p.t_max);
-        let entered = m.bitmask() & lanes;
-        (e.near[i], e.lanes[i]) = (near, entered);
-        hit |= ((entered != 0) as u32) << i;
-    }
+    let mut hit = e.hit;
     // Insertion into the farthest-first order.
     while hit != 0 {
         let i = hit.trailing_zeros() as usize;
@@ -186,7 +210,6 @@ fn entered_children<V: SimdF32>(
         e.order[j] = i as u8;
         e.k += 1;
     }
-    e
 }
 
 /// Starts loading a pushed child: an interior node always, a leaf's triangle block if
@@ -219,6 +242,7 @@ pub fn intersect<V: SimdF32>(
         return hits;
     }
     let interval = PacketInterval::new(p, active);
+    let mut e = Entered::new();
     let stack = &mut stack.closest;
     stack.clear();
     let mut cur = Entry { child: 0, lanes: active, near: p.t_min };
@@ -239,7 +263,7 @@ pub fn intersect<V: SimdF32>(
                 }
             } else {
                 let n = &nodes[cur.child as usize];
-                let e = entered_children(p, n, lanes, interval.as_ref(), stats);
+                entered_children(p, n, lanes, interval.as_ref(), &mut e, stats);
                 if e.k > 0 {
                     // Pushed subtrees start loading now, as in single-ray traversal.
                     stack.extend((0..e.k - 1).map(|j| {
@@ -397,7 +421,8 @@ pub fn occluded<V: SimdF32>(
     if nodes.is_empty() || active == 0 {
         return 0;
     }
-    let interval = PacketInterval::new(p, active);
+    let interval = None;
+    let mut e = Entered::new();
     let mut blocked = 0u32;
     let stack = &mut stack.any;
     stack.clear();
@@ -423,7 +448,7 @@ pub fn occluded<V: SimdF32>(
                 }
             } else {
                 let n = &nodes[child as usize];
-                let e = entered_children(p, n, lanes, interval.as_ref(), stats);
+                entered_children(p, n, lanes, interval.as_ref(), &mut e, stats);
                 if e.k > 0 {
                     // Farthest first: push in reverse of the farthest-first order.
                     for j in (1..e.k).rev() {
