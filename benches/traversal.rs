@@ -1,6 +1,6 @@
 //! Criterion: the standard ray sets (BENCHMARK.md) on CBbunny, primary / diffuse / shadow x
 //! single (streamed, as `pathtracer bench` runs it, and one ray at a time) / packet4 /
-//! packet8, one thread. Skips (with a message) without the course scenes.
+//! packet8 / packet16, one thread. Skips (with a message) without the course scenes.
 //! The `pathtracer bench` command is the reported measurement; this is for quick A/B work:
 //! `cargo bench --bench traversal`.
 
@@ -29,7 +29,7 @@ fn trace(accel: &Accel, rays: &[Ray], set: RaySet, traversal: Traversal) -> u64 
             hits.iter().flatten().count() as u64
         };
     }
-    let (mut hits, mut blocked) = ([None; 8], [false; 8]);
+    let (mut hits, mut blocked) = ([None; 16], [false; 16]);
     let mut n = 0;
     for group in rays.chunks(traversal.width()) {
         let k = group.len();
@@ -40,8 +40,14 @@ fn trace(accel: &Accel, rays: &[Ray], set: RaySet, traversal: Traversal) -> u64 
             (Traversal::Packet4, false) => {
                 accel.intersect_packet::<4>(group, &mut hits, &mut stats)
             }
-            (_, true) => accel.occluded_packet::<8>(group, &mut blocked, &mut stats),
-            (_, false) => accel.intersect_packet::<8>(group, &mut hits, &mut stats),
+            (Traversal::Packet8, true) => {
+                accel.occluded_packet::<8>(group, &mut blocked, &mut stats)
+            }
+            (Traversal::Packet8, false) => {
+                accel.intersect_packet::<8>(group, &mut hits, &mut stats)
+            }
+            (_, true) => accel.occluded_packet::<16>(group, &mut blocked, &mut stats),
+            (_, false) => accel.intersect_packet::<16>(group, &mut hits, &mut stats),
         }
         n += if set.is_occlusion() {
             blocked[..k].iter().filter(|&&b| b).count()

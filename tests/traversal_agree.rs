@@ -1,4 +1,4 @@
-//! Packets (4 and 8 wide) and streams of interleaved single rays against single rays on the
+//! Packets (4, 8 and 16 wide) and streams of interleaved single rays against single rays on the
 //! same rays: the same hit or miss, bit-identical t, u, v and the same prim for every ray, and
 //! the same occlusion answer for shadow rays.
 
@@ -14,7 +14,7 @@ fn bits(h: Option<Hit>) -> Option<(u32, u32, u32, u32)> {
     h.map(|h| (h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.prim))
 }
 
-/// Every ray's closest hit and occlusion agree between single rays, both packet widths and
+/// Every ray's closest hit and occlusion agree between single rays, all packet widths and
 /// streams of rays in flight (`Accel::intersect_stream`, which also counts exactly the same
 /// work, `Accel::occluded_stream`, and the bare triangle streams at 3 rays in flight, with
 /// prefetching, against the bare triangle traversals). Returns the number of closest hits found (so callers can check the rays test
@@ -42,18 +42,24 @@ fn assert_agree(accel: &Accel, rays: &[Ray], what: &str) -> usize {
     traverse_single::occluded_stream::<3>(nodes, tris, rays, &mut bare3_occ, &mut stats);
     let mut p4 = vec![None; rays.len()];
     let mut p8 = vec![None; rays.len()];
+    let mut p16 = vec![None; rays.len()];
     accel.intersect_packets::<4>(rays, &mut p4, &mut stats);
     accel.intersect_packets::<8>(rays, &mut p8, &mut stats);
+    accel.intersect_packets::<16>(rays, &mut p16, &mut stats);
     let mut o4 = vec![false; rays.len()];
     let mut o8 = vec![false; rays.len()];
+    let mut o16 = vec![false; rays.len()];
     accel.occluded_packets::<4>(rays, &mut o4, &mut stats);
     accel.occluded_packets::<8>(rays, &mut o8, &mut stats);
+    accel.occluded_packets::<16>(rays, &mut o16, &mut stats);
     for i in 0..rays.len() {
         let s = bits(single[i]);
         assert_eq!(s, bits(stream[i]), "{what}: ray {i} {:?}: the stream differs", rays[i]);
         assert_eq!(bits(bare[i]), bits(bare3[i]), "{what}: ray {i} {:?}: stream of 3", rays[i]);
         assert_eq!(s, bits(p4[i]), "{what}: ray {i} {:?}: packet4 differs", rays[i]);
         assert_eq!(s, bits(p8[i]), "{what}: ray {i} {:?}: packet8 differs", rays[i]);
+        assert_eq!(s, bits(p16[i]), "{what}: ray {i} {:?}: packet16 differs", rays[i]);
+        assert_eq!(single_occ[i], o16[i], "{what}: ray {i} {:?}: packet16 occlusion", rays[i]);
         assert_eq!(single_occ[i], o4[i], "{what}: ray {i} {:?}: packet4 occlusion", rays[i]);
         assert_eq!(single_occ[i], stream_occ[i], "{what}: ray {i} {:?}: stream occlusion", rays[i]);
         assert_eq!(bare_occ[i], bare3_occ[i], "{what}: ray {i} {:?}: stream of 3", rays[i]);

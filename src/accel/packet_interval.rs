@@ -143,7 +143,14 @@ mod tests {
     use crate::sampler::Pcg32;
     use wide::{f32x4, f32x8};
 
+    fn child_box_corners(n: &WideNode, i: usize) -> (Vec3, Vec3) {
+        let b = &n.bounds;
+        (Vec3::new(b[0][i], b[2][i], b[4][i]), Vec3::new(b[1][i], b[3][i], b[5][i]))
+    }
+
     /// Every child that a lane's exact (single-ray) slab test enters passes the pre-test.
+    /// (Without its absolute margin the pre-test fails here: near-parallel lanes, whose
+    /// `-o inv` terms round by far more than the slab distances themselves.)
     fn conservative<V: SimdF32>() {
         let mut rng = Pcg32::new(7, 11);
         let mut r = || rng.next_f32() * 2.0 - 1.0;
@@ -161,10 +168,14 @@ mod tests {
                 let max = if (case + i) % 5 == 0 { Vec3::new(min.x, max.y, max.z) } else { max };
                 n.set_child(i, min.into(), max.into(), i as u32 + 1);
             }
-            // A coherent bundle: one origin region, directions within a cone towards a box.
+            // A coherent bundle: one origin region, directions within a cone towards a box,
+            // or (every third case) exactly at a corner or an edge point of a child box, so
+            // that a lane grazes it; with a single active lane the interval is that lane's
+            // own slab interval and only the margins keep the pre-test conservative.
             let eye = offset + Vec3::new(r(), r(), r()) * scale * 3.0;
             let spread = [0.0, 1e-3, 0.05, 0.5][(case / 16) % 4];
             let target = offset + Vec3::new(r(), r(), r()) * scale;
+            let graze = case % 3 == 1;
             let rays: Vec<Ray> = (0..V::W)
                 .map(|k| {
                     let o = if case % 3 == 0 {
@@ -172,8 +183,28 @@ mod tests {
                     } else {
                         eye + Vec3::new(r(), r(), r()) * scale * spread
                     };
-                    let mut d = target - o + Vec3::new(r(), r(), r()) * scale * spread;
-                    if (case + k) % 7 == 0 {
+                    let mut d = if graze {
+                        let c = (case + k) % 8;
+                        let (lo, hi) = child_box_corners(&n, c);
+                        let f = if k % 2 == 0 {
+                            Vec3::new(0.0, 1.0, 0.0)
+                        } else {
+                            Vec3::splat(r().abs())
+                        };
+                        let pick = |a: f32, b: f32, t: f32| {
+                            if t == 0.0 {
+                                a
+                            } else if t == 1.0 {
+                                b
+                            } else {
+                                a + (b - a) * t
+                            }
+                        };
+                        Vec3::new(pick(lo.x, hi.x, f.x), pick(lo.y, hi.y, f.y), hi.z) - o
+                    } else {
+                        target - o + Vec3::new(r(), r(), r()) * scale * spread
+                    };
+                    if !graze && (case + k) % 7 == 0 {
                         d.y = 0.0;
                     }
                     Ray::segment(
@@ -184,7 +215,11 @@ mod tests {
                     )
                 })
                 .collect();
-            let lanes = if case % 9 == 0 { 0b1011 } else { (1u32 << V::W) - 1 };
+            let lanes = match case % 9 {
+                0 => 0b1011,
+                1 | 4 => 0b1,
+                _ => (1u32 << V::W) - 1,
+            };
             let p = RayPacket::<V>::from_rays_masked(&rays, lanes);
             let Some(iv) = PacketInterval::new(&p, lanes) else { continue };
             tested += 1;
