@@ -380,7 +380,11 @@ impl Accel {
         Lanes<W>: LaneWidth,
     {
         let mut stack = PacketStack::new();
-        for (r, h) in rays.chunks(W).zip(hits.chunks_mut(W)) {
+        for (k, (r, h)) in rays.chunks(W).zip(hits.chunks_mut(W)).enumerate() {
+            // The packet after next starts loading while this one is traced. Measured (A/B,
+            // best of 5x5, one thread): primary packet8 CBbunny 1.05x, maxplanck 1.03x,
+            // packet16 maxplanck 1.02x (1.04x at two threads); shadow packets 1.00-1.01x.
+            traverse_single::prefetch_slice(rays.get((k + 2) * W..(k + 3) * W).unwrap_or(&[]));
             let packet = RayPacket::<VFloat<W>>::from_rays(r);
             self.intersect_ray_packet::<W>(packet, fallback, &mut stack, h, stats);
         }
@@ -409,7 +413,8 @@ impl Accel {
         Lanes<W>: LaneWidth,
     {
         let mut stack = PacketStack::new();
-        for (r, b) in rays.chunks(W).zip(blocked.chunks_mut(W)) {
+        for (k, (r, b)) in rays.chunks(W).zip(blocked.chunks_mut(W)).enumerate() {
+            traverse_single::prefetch_slice(rays.get((k + 2) * W..(k + 3) * W).unwrap_or(&[]));
             let packet = RayPacket::<VFloat<W>>::from_rays(r);
             self.occluded_ray_packet::<W>(&packet, fallback, &mut stack, b, stats);
         }

@@ -136,6 +136,17 @@ pub(super) fn prefetch_node(nodes: &[WideNode], child: u32) {
     }
 }
 
+/// Starts loading every cache line of `s`.
+#[inline(always)]
+pub(super) fn prefetch_slice<T>(s: &[T]) {
+    if let (Some(first), Some(last)) = (s.first(), s.last()) {
+        let (a, b) = (first as *const T as usize & !63, last as *const T as usize);
+        for line in (a..b + std::mem::size_of::<T>()).step_by(64) {
+            prefetch(line as *const u8);
+        }
+    }
+}
+
 /// Starts loading every cache line of the `T` at `p` (which need not be dereferenceable).
 #[inline(always)]
 fn prefetch<T>(p: *const T) {
