@@ -60,10 +60,10 @@ pub enum AccelKind {
 ///   slots are computed; the scene box is not tested separately. A packet counts, at every
 ///   node it visits, one test per child box per lane active at that node (lanes that entered
 ///   its box and whose best hit is not yet nearer), not W: inactive and finished lanes cost
-///   nothing in the count. A closest-hit packet whose lanes share direction signs first tests
-///   the node's boxes against the whole packet at once (`packet_interval`): that counts one
-///   test per child box, and then only the boxes it passes count per lane. A lane handed to
-///   single-ray fallback counts as single-ray traversal from then on.
+///   nothing in the count. A closest-hit packet of 16 rays whose lanes share direction signs
+///   first tests the node's boxes against the whole packet at once (`packet_interval`): that
+///   counts one test per child box, and then only the boxes it passes count per lane. A lane
+///   handed to single-ray fallback counts as single-ray traversal from then on.
 /// - `triangle_tests`: ray-triangle tests. One ray against a leaf of k triangles counts k (the
 ///   8-wide SIMD test of k < 8 triangles still counts k; an any-hit ray that stops at a
 ///   blocking group of 8 counts the groups tested). A packet leaf counts, per triangle, the

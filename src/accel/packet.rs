@@ -1,5 +1,6 @@
 //! `RayPacket<V>`: W rays in structure-of-arrays form (one lane per ray) for packet traversal,
-//! generic over the lane type `V` (`wide::f32x4` or `wide::f32x8`, see `crate::simd`).
+//! generic over the lane type `V` (`wide::f32x4`, `wide::f32x8` or `simd::F32x16`, see
+//! `crate::simd`).
 //!
 //! A packet is gathered from a slice of `Ray` records (the queues' layout); lanes past the end
 //! of the slice, or switched off by the caller, are inactive and never produce a hit or count

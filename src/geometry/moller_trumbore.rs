@@ -17,7 +17,7 @@
 //! need the three vertices instead of v0 and two edges, and a per-ray shear.
 //!
 //! One arithmetic core, generic over the lane type, serves the scalar test, one ray against 8
-//! triangles, and W rays (W = 4 or 8) against one triangle. The same operations in the same order give
+//! triangles, and W rays (W = 4, 8 or 16) against one triangle. The same operations in the same order give
 //! bit-identical t, u, v in every lane (no fused multiply-add in any of them), which the
 //! tests check lane by lane.
 
@@ -222,7 +222,7 @@ mod tests {
         assert!(hits > 1000, "the test must exercise hits: {hits}");
     }
 
-    /// W rays against one broadcast triangle (the packet leaf test), at both widths: every
+    /// W rays against one broadcast triangle (the packet leaf test), at every width: every
     /// lane equals the scalar test exactly.
     fn rays_vs_one_triangle<V: SimdF32>() -> usize {
         let mut rng = Pcg32::new(5, V::W as u64);
@@ -284,6 +284,7 @@ mod tests {
     fn packet_lanes_equal_the_scalar_test() {
         assert!(rays_vs_one_triangle::<wide::f32x4>() > 500);
         assert!(rays_vs_one_triangle::<f32x8>() > 1000);
+        assert!(rays_vs_one_triangle::<crate::simd::F32x16>() > 2000);
     }
 
     #[test]

@@ -1,7 +1,7 @@
-//! Lane-width-generic SIMD over `wide::f32x4` and `wide::f32x8`, in the spirit of Embree's
-//! `vfloat<N>`: kernels are written once against [`SimdF32`] and instantiated per width, so the
-//! 4- and 8-wide packet paths (and the scalar Möller-Trumbore, through the arithmetic traits
-//! alone) share one body of code.
+//! Lane-width-generic SIMD over `wide::f32x4`, `wide::f32x8` and [`F32x16`] (two `f32x8`
+//! halves), in the spirit of Embree's `vfloat<N>`: kernels are written once against
+//! [`SimdF32`] and instantiated per width, so the 4-, 8- and 16-wide packet paths (and the
+//! scalar Möller-Trumbore, through the arithmetic traits alone) share one body of code.
 //!
 //! Masks are float vectors whose lanes are all-ones or all-zeros bits, as `wide`'s comparisons
 //! return them.
@@ -44,7 +44,7 @@ pub trait SimdF32:
     fn fast_min(self, b: Self) -> Self;
     fn fast_max(self, b: Self) -> Self;
     /// `self * a + b`, fused (one rounding) on the FMA targets the crate is built for
-    /// (`.cargo/config.toml`), at both widths alike, so that lanes of either width agree.
+    /// (`.cargo/config.toml`), at every width alike, so that lanes of any width agree.
     fn mul_add(self, a: Self, b: Self) -> Self;
     /// `mask ? t : f` per lane.
     fn select(mask: Self, t: Self, f: Self) -> Self;
