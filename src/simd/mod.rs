@@ -202,6 +202,18 @@ impl F32x16 {
     }
 }
 
+/// Two-operand `SimdF32` methods of `F32x16` as the `f32x8` method on each half.
+macro_rules! lanewise {
+    ($($f:ident),*) => {
+        $(
+            #[inline(always)]
+            fn $f(self, b: Self) -> Self {
+                self.zip(b, |x, y| x.$f(y))
+            }
+        )*
+    };
+}
+
 impl Arith for F32x16 {
     #[inline(always)]
     fn abs(self) -> Self {
@@ -232,34 +244,7 @@ impl SimdF32 for F32x16 {
         self.lo.store(out);
         self.hi.store(&mut out[8..]);
     }
-    #[inline(always)]
-    fn simd_eq(self, b: Self) -> Self {
-        self.zip(b, |x, y| x.simd_eq(y))
-    }
-    #[inline(always)]
-    fn simd_ne(self, b: Self) -> Self {
-        self.zip(b, |x, y| x.simd_ne(y))
-    }
-    #[inline(always)]
-    fn simd_lt(self, b: Self) -> Self {
-        self.zip(b, |x, y| x.simd_lt(y))
-    }
-    #[inline(always)]
-    fn simd_le(self, b: Self) -> Self {
-        self.zip(b, |x, y| x.simd_le(y))
-    }
-    #[inline(always)]
-    fn simd_ge(self, b: Self) -> Self {
-        self.zip(b, |x, y| x.simd_ge(y))
-    }
-    #[inline(always)]
-    fn fast_min(self, b: Self) -> Self {
-        self.zip(b, |x, y| x.fast_min(y))
-    }
-    #[inline(always)]
-    fn fast_max(self, b: Self) -> Self {
-        self.zip(b, |x, y| x.fast_max(y))
-    }
+    lanewise!(simd_eq, simd_ne, simd_lt, simd_le, simd_ge, fast_min, fast_max);
     #[inline(always)]
     fn mul_add(self, a: Self, b: Self) -> Self {
         F32x16 { lo: self.lo.mul_add(a.lo, b.lo), hi: self.hi.mul_add(a.hi, b.hi) }
