@@ -8,6 +8,7 @@ use rayon::prelude::*;
 use crate::accel::Accel;
 use crate::integrator::Integrator;
 use crate::math::Vec3;
+use crate::sampler::SamplerKind;
 use crate::scene::{Camera, Scene};
 use crate::wavefront::{self, RenderContext, RenderStats, Tile, Workspace};
 
@@ -27,6 +28,8 @@ pub struct RenderConfig {
     /// Worker threads (`-t`); 0 = all cores.
     pub threads: usize,
     pub seed: u64,
+    /// How random numbers are drawn (`--sampler`).
+    pub sampler: SamplerKind,
     pub integrator: Integrator,
     /// Print a progress line on stderr for renders longer than a second.
     pub progress: bool,
@@ -49,6 +52,7 @@ impl Default for RenderConfig {
             adaptive: None,
             threads: 0,
             seed: 0,
+            sampler: SamplerKind::default(),
             integrator: Integrator::Normals,
             progress: false,
             camera: None,
@@ -94,6 +98,7 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         max_depth: config.max_depth,
         adaptive: config.adaptive,
         seed: config.seed,
+        sampler: config.sampler,
         packets: config.packets,
         scene_epsilon: 1e-5 * bounds.diagonal().max(f32::MIN_POSITIVE),
     };

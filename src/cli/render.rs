@@ -7,6 +7,7 @@ use super::{parse_in_range, parse_number};
 use pathtracer::accel::{Accel, AccelKind};
 use pathtracer::integrator::{DirectLighting, Integrator};
 use pathtracer::render::{render, RenderConfig};
+use pathtracer::sampler::SamplerKind;
 use pathtracer::{bail, scene, Error, Result};
 
 const USAGE: &str = "\
@@ -36,6 +37,8 @@ Our options:
                       hemisphere: uniform hemisphere sampling (same as -H);
                       mis: emissive geometry is the light, MIS with BSDF sampling
   --seed N            random seed (default 0); same seed, same image for any -t
+  --sampler KIND      sobol: Owen-scrambled Sobol points per decision (default);
+                      independent: independent uniform numbers
   --no-bvh            test every primitive for every ray (slow; for small scenes)
   --info              print what the scene holds and exit
   --quiet             no progress line
@@ -210,6 +213,14 @@ pub(super) fn parse_args(args: &[String]) -> Result<Cli> {
             }
             "--seed" => cli.config.seed = parse_number("--seed", value("--seed")?)?,
             "--shading" => cli.config.integrator = parse_integrator(value("--shading")?)?,
+            "--sampler" => {
+                let name = value("--sampler")?;
+                cli.config.sampler = SamplerKind::parse(name).ok_or_else(|| {
+                    Error::new(format!(
+                        "--sampler: unknown sampler '{name}' (expected sobol or independent)"
+                    ))
+                })?;
+            }
             "--no-bvh" => cli.accel = AccelKind::BruteForce,
             "--info" => cli.info = true,
             "--quiet" | "-q" => cli.config.progress = false,

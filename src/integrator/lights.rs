@@ -87,14 +87,19 @@ impl LightSet {
     }
 
     /// Samples a point on the emissive geometry as seen from `p`; `None` if it faces away.
-    pub fn sample_emitter(&self, scene: &Scene, p: Vec3, u: [f32; 3]) -> Option<LightSample> {
+    ///
+    /// `u[0]` picks the emitter by power and is then rescaled to [0, 1) within the picked
+    /// emitter's share, so that the two numbers still stratify the point on it.
+    pub fn sample_emitter(&self, scene: &Scene, p: Vec3, u: [f32; 2]) -> Option<LightSample> {
         let target = u[0] * self.emitter_power;
         let i = self
             .emitter_cdf
             .partition_point(|&c| c <= target)
             .min(self.emitters.len().checked_sub(1)?);
         let e = self.emitters[i];
-        let (q, nq) = sample_emitter_point(scene, e, u[1], u[2]);
+        let below = if i == 0 { 0.0 } else { self.emitter_cdf[i - 1] };
+        let u0 = ((target - below) / (self.emitter_cdf[i] - below)).clamp(0.0, 1.0 - f32::EPSILON);
+        let (q, nq) = sample_emitter_point(scene, e, u0, u[1]);
         let d = q - p;
         let dist = d.length();
         let wi = d / dist;

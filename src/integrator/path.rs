@@ -15,6 +15,7 @@
 use super::bsdf::{self, UNIFORM_HEMISPHERE_PDF};
 use super::lights::{sample_scene_light, LightSample};
 use crate::math::{orthonormal_basis, Ray, Vec3};
+use crate::sampler::Decision;
 use crate::scene::Material;
 use crate::wavefront::{PathState, RenderContext, ShadeOutputs, Surface};
 
@@ -61,6 +62,8 @@ struct Vertex<'a> {
     wo: Vec3,
     material: &'a Material,
     throughput: Vec3,
+    /// Depth of the ray that reached this vertex (camera rays: 0); keys the sampler.
+    depth: u32,
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -108,6 +111,7 @@ pub fn shade_hit(
         frame,
         material,
         throughput: paths.throughput[pi],
+        depth,
     };
 
     if bsdf::has_smooth_lobe(material) {
@@ -165,11 +169,11 @@ fn sample_scene_lights(
     paths: &mut PathState,
     out: &mut ShadeOutputs,
 ) {
-    let rng = &mut paths.rng[path as usize];
-    for light in &ctx.lights.scene_lights {
+    let sampler = &mut paths.sampler[path as usize];
+    for (li, light) in ctx.lights.scene_lights.iter().enumerate() {
         let n = if light.is_delta() { 1 } else { ctx.light_samples };
-        for _ in 0..n {
-            let u = [rng.next_f32(), rng.next_f32()];
+        for j in 0..n {
+            let u = sampler.get_2d(ctx.sampler, v.depth, Decision::SceneLight(li as u32), j, n);
             if let Some(ls) = sample_scene_light(light, v.p, v.frame.n, u) {
                 queue_shadow_ray(ctx, v, &ls, 1.0 / n as f32, path, out);
             }
@@ -191,9 +195,9 @@ fn sample_emissive_geometry(
         return;
     }
     let n = ctx.light_samples;
-    let rng = &mut paths.rng[path as usize];
-    for _ in 0..n {
-        let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+    let sampler = &mut paths.sampler[path as usize];
+    for j in 0..n {
+        let u = sampler.get_2d(ctx.sampler, v.depth, Decision::Emitter, j, n);
         let Some(ls) = ctx.lights.sample_emitter(ctx.scene, v.p, u) else {
             continue;
         };
@@ -251,9 +255,10 @@ fn queue_hemisphere_probes(
     out: &mut ShadeOutputs,
 ) {
     let n = ctx.scene.lights.len().max(1) as u32 * ctx.light_samples;
-    let rng = &mut paths.rng[path as usize];
-    for _ in 0..n {
-        let wi = bsdf::uniform_hemisphere(rng.next_f32(), rng.next_f32());
+    let sampler = &mut paths.sampler[path as usize];
+    for j in 0..n {
+        let [u1, u2] = sampler.get_2d(ctx.sampler, v.depth, Decision::Hemisphere, j, n);
+        let wi = bsdf::uniform_hemisphere(u1, u2);
         let f = bsdf::eval(v.material, v.wo, wi);
         let weight = v.throughput * f * (wi.z / (UNIFORM_HEMISPHERE_PDF * n as f32));
         let dir = v.frame.to_world(wi);
@@ -275,15 +280,16 @@ fn continue_path(
     out: &mut ShadeOutputs,
 ) {
     let pi = path as usize;
-    let rng = &mut paths.rng[pi];
-    let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
-    let Some(s) = bsdf::sample(v.material, v.wo, u) else {
+    let sampler = &mut paths.sampler[pi];
+    let [u1, u2] = sampler.get_2d(ctx.sampler, depth, Decision::Bsdf, 0, 1);
+    let [lobe, roulette] = sampler.get_2d(ctx.sampler, depth, Decision::LobeAndRoulette, 0, 1);
+    let Some(s) = bsdf::sample(v.material, v.wo, [u1, u2, lobe]) else {
         return;
     };
     let mut throughput = v.throughput * s.weight;
     if depth + 1 >= RR_START_DEPTH {
         let q = throughput.max_element().min(1.0);
-        if q <= 0.0 || rng.next_f32() >= q {
+        if q <= 0.0 || roulette >= q {
             return;
         }
         throughput /= q;

@@ -1,6 +1,113 @@
-//! Random numbers. Every stream is derived from (seed, pixel, sample) so that an image does not
-//! depend on the thread count or the order in which work is scheduled.
+//! Random numbers. Every number a path draws is derived from (seed, pixel, sample index, the
+//! decision it feeds) so that an image does not depend on the thread count or the order in
+//! which work is scheduled.
+//!
+//! Two samplers: `Sobol` (the default) gives every decision of a path its own Owen-scrambled 2D
+//! Sobol sequence over the pixel's samples (`sobol.rs`), so a pixel's samples stratify each
+//! decision; `Independent` draws everything from one PCG32 stream per pixel sample.
 
 mod pcg32;
+pub mod sobol;
 
 pub use pcg32::{splitmix64, Pcg32};
+
+/// How a render draws its random numbers (`--sampler`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SamplerKind {
+    /// Owen-scrambled Sobol points, one 2D sequence per decision (padded).
+    #[default]
+    Sobol,
+    /// Independent uniform numbers from one PCG32 stream per pixel sample.
+    Independent,
+}
+
+impl SamplerKind {
+    pub fn name(&self) -> &'static str {
+        match self {
+            SamplerKind::Sobol => "sobol",
+            SamplerKind::Independent => "independent",
+        }
+    }
+
+    pub fn parse(name: &str) -> Option<SamplerKind> {
+        match name {
+            "sobol" => Some(SamplerKind::Sobol),
+            "independent" => Some(SamplerKind::Independent),
+            _ => None,
+        }
+    }
+}
+
+/// The random decisions of a path vertex; with the vertex depth they name a Sobol dimension.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Decision {
+    /// Where in the pixel the camera ray goes.
+    CameraJitter,
+    /// A point on scene light number `.0` (course light sampling).
+    SceneLight(u32),
+    /// Which emitter and where on it (emissive-geometry sampling under MIS).
+    Emitter,
+    /// A uniform hemisphere direction (`-H`).
+    Hemisphere,
+    /// The BSDF sample's direction.
+    Bsdf,
+    /// The BSDF lobe choice (x) and Russian roulette (y).
+    LobeAndRoulette,
+}
+
+impl Decision {
+    fn dimension(self, depth: u32) -> u64 {
+        let (slot, extra) = match self {
+            Decision::CameraJitter => (0u64, 0u32),
+            Decision::SceneLight(i) => (1, i),
+            Decision::Emitter => (2, 0),
+            Decision::Hemisphere => (3, 0),
+            Decision::Bsdf => (4, 0),
+            Decision::LobeAndRoulette => (5, 0),
+        };
+        ((depth as u64) << 40) | (slot << 32) | extra as u64
+    }
+}
+
+/// The random numbers of one path (one pixel sample).
+#[derive(Debug, Clone)]
+pub struct PathSampler {
+    /// The independent stream (all numbers of `SamplerKind::Independent`).
+    pub rng: Pcg32,
+    /// Hash of (seed, pixel): the root of this pixel's Sobol keys.
+    pixel_key: u64,
+    /// The sample's index within its pixel.
+    sample: u32,
+}
+
+impl PathSampler {
+    pub fn new(seed: u64, pixel: u64, sample: u32, spp: u32) -> PathSampler {
+        PathSampler {
+            rng: Pcg32::for_index(seed, pixel * spp as u64 + sample as u64),
+            pixel_key: splitmix64(seed ^ splitmix64(pixel).rotate_left(17)),
+            sample,
+        }
+    }
+
+    /// Two numbers in [0, 1) for `decision` at path depth `depth`. A decision taken `count`
+    /// times per vertex (e.g. `-l` light samples) passes its draw number `sub` < `count`; the
+    /// Sobol sampler then spreads the pixel's `spp x count` draws over one sequence.
+    #[inline]
+    pub fn get_2d(
+        &mut self,
+        kind: SamplerKind,
+        depth: u32,
+        decision: Decision,
+        sub: u32,
+        count: u32,
+    ) -> [f32; 2] {
+        match kind {
+            SamplerKind::Independent => [self.rng.next_f32(), self.rng.next_f32()],
+            SamplerKind::Sobol => {
+                let key = splitmix64(self.pixel_key ^ decision.dimension(depth));
+                let index = (self.sample as u64 * count as u64 + sub as u64) as u32;
+                sobol::sobol_2d(key, index)
+            }
+        }
+    }
+}

@@ -26,6 +26,7 @@ pub use stages::{ShadeOutputs, Surface};
 use crate::accel::{Accel, TraceStats};
 use crate::integrator::{Integrator, LightSet};
 use crate::math::{Hit, Vec3};
+use crate::sampler::SamplerKind;
 use crate::scene::{Camera, Scene};
 
 /// Tile side in pixels.
@@ -46,6 +47,7 @@ pub struct RenderContext<'a> {
     /// Adaptive sampling: (samples per batch, tolerance), see `PixelStats::converged`.
     pub adaptive: Option<(u32, f32)>,
     pub seed: u64,
+    pub sampler: SamplerKind,
     /// Packets for coherent queues (see `stages::Coherence`); `false`: single rays only.
     pub packets: bool,
     /// Smallest offset for spawned rays: 1e-5 of the scene's bounding-box diagonal.

@@ -5,7 +5,7 @@
 //! plus the index of the path it belongs to.
 
 use crate::math::{Ray, Vec3};
-use crate::sampler::Pcg32;
+use crate::sampler::PathSampler;
 
 /// One entry per path (pixel sample) of the current batch.
 #[derive(Default)]
@@ -19,7 +19,8 @@ pub struct PathState {
     /// Solid-angle pdf of the BSDF sample that made the current ray; 0 for camera rays and
     /// specular bounces (MIS and the emission rules read it).
     pub bsdf_pdf: Vec<f32>,
-    pub rng: Vec<Pcg32>,
+    /// Each path's random numbers (see `sampler`).
+    pub sampler: Vec<PathSampler>,
 }
 
 impl PathState {
@@ -28,16 +29,16 @@ impl PathState {
         self.throughput.clear();
         self.radiance.clear();
         self.bsdf_pdf.clear();
-        self.rng.clear();
+        self.sampler.clear();
     }
 
-    pub fn push(&mut self, pixel: u32, rng: Pcg32) -> u32 {
+    pub fn push(&mut self, pixel: u32, sampler: PathSampler) -> u32 {
         let id = self.pixel.len() as u32;
         self.pixel.push(pixel);
         self.throughput.push(Vec3::ONE);
         self.radiance.push(Vec3::ZERO);
         self.bsdf_pdf.push(0.0);
-        self.rng.push(rng);
+        self.sampler.push(sampler);
         id
     }
 

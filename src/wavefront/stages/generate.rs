@@ -1,7 +1,7 @@
 //! Stage 1: camera rays for a batch of samples of every pixel of a tile.
 
 use super::super::{PathState, RayQueue, RenderContext, Tile};
-use crate::sampler::Pcg32;
+use crate::sampler::{Decision, PathSampler};
 
 /// Starts one path per (active pixel, sample) and queues its camera ray. With one sample per pixel the
 /// ray goes through the pixel centre (as the course does); otherwise it is jittered uniformly
@@ -27,18 +27,16 @@ pub fn generate_camera_rays(
             let (x, y) = (tile.x0 + local_x, tile.y0 + local_y);
             let pixel_in_image = y as u64 * width as u64 + x as u64;
             for s in first_sample..first_sample + batch {
-                let mut rng = path_rng(ctx.seed, pixel_in_image, s, ctx.spp);
-                let (jx, jy) =
-                    if ctx.spp == 1 { (0.5, 0.5) } else { (rng.next_f32(), rng.next_f32()) };
+                let mut sampler = PathSampler::new(ctx.seed, pixel_in_image, s, ctx.spp);
+                let [jx, jy] = if ctx.spp == 1 {
+                    [0.5, 0.5]
+                } else {
+                    sampler.get_2d(ctx.sampler, 0, Decision::CameraJitter, 0, 1)
+                };
                 let ray = ctx.camera.ray_through_pixel(x as f32 + jx, y as f32 + jy);
-                let id = paths.push(local, rng);
+                let id = paths.push(local, sampler);
                 rays.push(ray, id);
             }
         }
     }
-}
-
-/// The random stream of one pixel sample: independent of tiles, threads and batch sizes.
-fn path_rng(seed: u64, pixel: u64, sample: u32, spp: u32) -> Pcg32 {
-    Pcg32::for_index(seed, pixel * spp as u64 + sample as u64)
 }
