@@ -28,6 +28,11 @@ pub fn has_smooth_lobe(m: &Material) -> bool {
     matches!(m, Material::Diffuse { .. } | Material::Microfacet { .. })
 }
 
+/// Whether `sample` reads its third number (the lobe choice).
+pub fn chooses_lobe(m: &Material) -> bool {
+    matches!(m, Material::Glass { .. })
+}
+
 /// f(wo, wi) for the smooth lobes; zero for delta lobes and emitters.
 pub fn eval(m: &Material, wo: Vec3, wi: Vec3) -> Vec3 {
     match *m {

@@ -9,8 +9,9 @@
 //! 2. If k < max_depth, direct light: light sampling queues shadow rays, uniform hemisphere
 //!    sampling queues emission probes (closest-hit rays that add what they see), MIS queues
 //!    shadow rays to points on emissive geometry.
-//! 3. If k + 1 < max_depth (or = max_depth under MIS, for the BSDF half of the MIS pair) a BSDF
-//!    sample continues the path, with Russian roulette from the fourth bounce on.
+//! 3. If k + 1 < max_depth (or = max_depth under MIS, for the BSDF half of the MIS pair, and at
+//!    specular vertices, whose next hit may see an emitter) a BSDF sample continues the path,
+//!    with Russian roulette from the fourth bounce on.
 
 use super::bsdf::{self, UNIFORM_HEMISPHERE_PDF};
 use super::lights::{sample_scene_light, LightSample};
@@ -122,8 +123,12 @@ pub fn shade_hit(
         }
     }
 
-    let continues =
-        depth + 1 < ctx.max_depth || (direct == DirectLighting::Mis && depth + 1 == ctx.max_depth);
+    // At the last vertex a path still continues where the ray it spawns can add emission:
+    // under MIS (the BSDF half of the pair) and after a specular bounce (which light sampling
+    // cannot replace), as a path tracer of max depth m + 1 segments does.
+    let last = depth + 1 == ctx.max_depth;
+    let continues = depth + 1 < ctx.max_depth
+        || (last && (direct == DirectLighting::Mis || !bsdf::has_smooth_lobe(material)));
     if continues {
         continue_path(ctx, depth, &v, path, paths, out);
     }
@@ -282,12 +287,19 @@ fn continue_path(
     let pi = path as usize;
     let sampler = &mut paths.sampler[pi];
     let [u1, u2] = sampler.get_2d(ctx.sampler, depth, Decision::Bsdf, 0, 1);
-    let [lobe, roulette] = sampler.get_2d(ctx.sampler, depth, Decision::LobeAndRoulette, 0, 1);
+    // The lobe choice and the roulette share one draw, taken only when either is needed (a
+    // draw costs as much as a few dozen arithmetic operations).
+    let roulette_applies = depth + 1 >= RR_START_DEPTH;
+    let [lobe, roulette] = if roulette_applies || bsdf::chooses_lobe(v.material) {
+        sampler.get_2d(ctx.sampler, depth, Decision::LobeAndRoulette, 0, 1)
+    } else {
+        [0.0, 0.0]
+    };
     let Some(s) = bsdf::sample(v.material, v.wo, [u1, u2, lobe]) else {
         return;
     };
     let mut throughput = v.throughput * s.weight;
-    if depth + 1 >= RR_START_DEPTH {
+    if roulette_applies {
         let q = throughput.max_element().min(1.0);
         if q <= 0.0 || roulette >= q {
             return;

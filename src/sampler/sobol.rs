@@ -102,7 +102,8 @@ pub fn sequence_key(seed: u64, pixel: u64, dimension: u64) -> u64 {
 #[inline]
 pub fn sobol_2d(key: u64, index: u32) -> [f32; 2] {
     let shuffle = key as u32;
-    let (sx, sy) = ((key >> 32) as u32, splitmix64(key) as u32);
+    // The key is a splitmix64 output already; a multiply spreads it into a third seed.
+    let (sx, sy) = ((key >> 32) as u32, (key.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 32) as u32);
     // i = owen_scramble(index, shuffle); its van der Corput value reverse(i) is `reversed`.
     let reversed = laine_karras(index.reverse_bits(), shuffle);
     let i = reversed.reverse_bits();

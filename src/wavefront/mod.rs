@@ -14,8 +14,11 @@
 //! ```
 //!
 //! Queue sizes: a tile of 16 x 16 pixels with `spp` samples holds at most 256 x `spp` paths;
-//! samples are processed in batches of at most `SAMPLE_BATCH` per pixel, so a queue never holds
-//! more than 256 x 16 = 4096 rays (4096 x 36 bytes = 144 KiB: it stays in L2).
+//! samples are processed in batches of at most `SAMPLE_BATCH` per pixel, so a ray queue never
+//! holds more than 256 x 16 = 4096 rays (4096 x 36 bytes = 144 KiB: it stays in L2). Each path
+//! vertex may queue one shadow ray per light sample (`-l` per area light), so the batch shrinks
+//! until a shadow queue holds at most `SHADOW_QUEUE_CAP` rays (8192 x 48 bytes = 384 KiB; at
+//! `-l 32` the queue used to reach 6 MiB per tile).
 
 mod queues;
 mod stages;
@@ -33,6 +36,26 @@ use crate::scene::{Camera, Scene};
 pub const TILE: u32 = 16;
 /// Samples per pixel traced together in one wavefront pass.
 pub const SAMPLE_BATCH: u32 = 16;
+/// Most shadow rays one wavefront pass may queue per depth.
+pub const SHADOW_QUEUE_CAP: u32 = 8192;
+
+/// Samples per pixel per pass: `SAMPLE_BATCH`, fewer when each path vertex queues so many
+/// shadow rays that a full batch would overflow `SHADOW_QUEUE_CAP`.
+fn sample_batch(ctx: &RenderContext) -> u32 {
+    // Light sampling and MIS: one ray per delta light, `-l` per other light and for the
+    // emitters; hemisphere sampling: `-l` per scene light (at least one). The larger bounds both.
+    let l = ctx.light_samples;
+    let sampled: u32 = ctx
+        .lights
+        .scene_lights
+        .iter()
+        .map(|light| if light.is_delta() { 1 } else { l })
+        .fold(if ctx.lights.has_emitters() { l } else { 0 }, u32::saturating_add);
+    let hemisphere = (ctx.scene.lights.len().max(1) as u32).saturating_mul(l);
+    let per_vertex = sampled.max(hemisphere);
+    let pixels = TILE * TILE;
+    (SHADOW_QUEUE_CAP / pixels.saturating_mul(per_vertex)).clamp(1, SAMPLE_BATCH)
+}
 
 /// What every stage reads: immutable for the whole render.
 pub struct RenderContext<'a> {
@@ -135,6 +158,8 @@ pub struct Workspace {
     shadow: ShadowQueue,
     probes: ShadowQueue,
     hits: Vec<Option<Hit>>,
+    /// Occlusion answers of the shadow queue.
+    blocked: Vec<bool>,
     pixels: PixelStats,
 }
 
@@ -188,10 +213,11 @@ pub fn render_tile(
     stats: &mut RenderStats,
 ) {
     ws.pixels.reset(tile.pixel_count());
+    let max_batch = sample_batch(ctx);
     let mut first = 0;
     while first < ctx.spp {
         // Batches end on multiples of the adaptive batch size, where convergence is tested.
-        let mut batch = SAMPLE_BATCH.min(ctx.spp - first);
+        let mut batch = max_batch.min(ctx.spp - first);
         if let Some((every, _)) = ctx.adaptive {
             batch = batch.min(every - first % every);
         }
@@ -263,6 +289,7 @@ fn trace_sample_batch(
             ctx,
             &ws.shadow,
             stages::Coherence::of_depth(depth, ctx.packets),
+            &mut ws.blocked,
             &mut ws.paths,
             &mut stats.trace,
         );

@@ -13,15 +13,15 @@ pub fn trace_shadow_rays(
     ctx: &RenderContext,
     shadow: &ShadowQueue,
     coherence: Coherence,
+    blocked: &mut Vec<bool>,
     paths: &mut PathState,
     stats: &mut TraceStats,
 ) {
-    let mut blocked = vec![false; shadow.len()];
+    blocked.clear();
+    blocked.resize(shadow.len(), false);
     match coherence {
-        Coherence::Coherent => {
-            ctx.accel.occluded_packets::<PACKET>(&shadow.rays, &mut blocked, stats)
-        }
-        Coherence::Incoherent => ctx.accel.occluded_stream(&shadow.rays, &mut blocked, stats),
+        Coherence::Coherent => ctx.accel.occluded_packets::<PACKET>(&shadow.rays, blocked, stats),
+        Coherence::Incoherent => ctx.accel.occluded_stream(&shadow.rays, blocked, stats),
     }
     for (i, _) in blocked.iter().enumerate().filter(|(_, &b)| !b) {
         paths.radiance[shadow.path[i] as usize] += shadow.radiance[i];
