@@ -43,9 +43,67 @@ pub struct LightSet {
     /// emissive-geometry mode).
     pub scene_lights: Vec<Light>,
     emitters: Vec<Emitter>,
-    /// Running sum of emitter power (area x luminance of the emitted radiance).
-    emitter_cdf: Vec<f32>,
+    /// Emitters picked by power (area x luminance of the emitted radiance) in O(1).
+    emitter_table: AliasTable,
     emitter_power: f32,
+}
+
+/// Walker's alias table: picks item i with probability weight_i / sum in O(1), from one
+/// uniform number that it hands back rescaled to [0, 1) so it can be used again.
+#[derive(Debug, Clone, Default)]
+pub struct AliasTable {
+    /// Per bucket: the probability of keeping the bucket's own item, and the other item.
+    buckets: Vec<(f32, u32)>,
+}
+
+impl AliasTable {
+    /// A table over `weights` (non-negative, finite, not all zero).
+    pub fn new(weights: &[f32]) -> AliasTable {
+        let n = weights.len();
+        let total: f64 = weights.iter().map(|&w| w as f64).sum();
+        if n == 0 || !(total > 0.0) {
+            return AliasTable::default();
+        }
+        // Scaled so the mean is 1; below-mean buckets are topped up from above-mean items.
+        let mut scaled: Vec<f64> = weights.iter().map(|&w| w as f64 * n as f64 / total).collect();
+        let mut buckets: Vec<(f32, u32)> = (0..n as u32).map(|i| (1.0, i)).collect();
+        let (mut small, mut large): (Vec<usize>, Vec<usize>) =
+            (0..n).partition(|&i| scaled[i] < 1.0);
+        while let (Some(&s), Some(&l)) = (small.last(), large.last()) {
+            small.pop();
+            buckets[s] = (scaled[s] as f32, l as u32);
+            scaled[l] -= 1.0 - scaled[s];
+            if scaled[l] < 1.0 {
+                large.pop();
+                small.push(l);
+            }
+        }
+        // Whatever is left is 1 up to rounding: such buckets keep their own item.
+        AliasTable { buckets }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.buckets.is_empty()
+    }
+
+    /// The picked index and `u` rescaled to [0, 1) within the picked share.
+    #[inline]
+    pub fn sample(&self, u: f32) -> Option<(usize, f32)> {
+        let n = self.buckets.len();
+        if n == 0 {
+            return None;
+        }
+        let x = u * n as f32;
+        let i = (x as usize).min(n - 1);
+        let f = (x - i as f32).clamp(0.0, 1.0);
+        let (keep, alias) = self.buckets[i];
+        let below = 1.0 - f32::EPSILON;
+        Some(if f < keep {
+            (i, (f / keep).min(below))
+        } else {
+            (alias as usize, ((f - keep) / (1.0 - keep)).min(below))
+        })
+    }
 }
 
 pub fn luminance(c: Vec3) -> f32 {
@@ -71,14 +129,16 @@ impl LightSet {
         };
         let triangles = (0..scene.triangles.len() as u32).map(Emitter::Triangle);
         let spheres = (0..scene.spheres.len() as u32).map(Emitter::Sphere);
+        let mut powers = Vec::new();
         for e in triangles.chain(spheres) {
             let power = emitter_area(scene, e) * luminance(emitter_radiance(scene, e));
-            if power > 0.0 {
+            if power > 0.0 && power.is_finite() {
                 set.emitter_power += power;
                 set.emitters.push(e);
-                set.emitter_cdf.push(set.emitter_power);
+                powers.push(power);
             }
         }
+        set.emitter_table = AliasTable::new(&powers);
         set
     }
 
@@ -88,17 +148,11 @@ impl LightSet {
 
     /// Samples a point on the emissive geometry as seen from `p`; `None` if it faces away.
     ///
-    /// `u[0]` picks the emitter by power and is then rescaled to [0, 1) within the picked
-    /// emitter's share, so that the two numbers still stratify the point on it.
+    /// `u[0]` picks the emitter by power (alias table, O(1)) and is then rescaled to [0, 1)
+    /// within the picked emitter's share, so that the two numbers still stratify the point.
     pub fn sample_emitter(&self, scene: &Scene, p: Vec3, u: [f32; 2]) -> Option<LightSample> {
-        let target = u[0] * self.emitter_power;
-        let i = self
-            .emitter_cdf
-            .partition_point(|&c| c <= target)
-            .min(self.emitters.len().checked_sub(1)?);
+        let (i, u0) = self.emitter_table.sample(u[0])?;
         let e = self.emitters[i];
-        let below = if i == 0 { 0.0 } else { self.emitter_cdf[i - 1] };
-        let u0 = ((target - below) / (self.emitter_cdf[i] - below)).clamp(0.0, 1.0 - f32::EPSILON);
         let (q, nq) = sample_emitter_point(scene, e, u0, u[1]);
         let d = q - p;
         let dist = d.length();
@@ -222,5 +276,37 @@ fn sample_emitter_point(scene: &Scene, e: Emitter, u1: f32, u2: f32) -> (Vec3, V
             let n = Vec3::new(r * phi.cos(), r * phi.sin(), z);
             (s.center + s.radius * n, n)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn alias_table_picks_by_weight_and_rescales_uniformly() {
+        let weights = [1.0f32, 0.0, 3.0, 0.5, 2.5, 1e-3];
+        let table = AliasTable::new(&weights);
+        let total: f32 = weights.iter().sum();
+        let n = 200_000;
+        let mut counts = [0usize; 6];
+        let mut rescaled_sum = [0.0f64; 6];
+        for k in 0..n {
+            let u = (k as f32 + 0.5) / n as f32;
+            let (i, v) = table.sample(u).unwrap();
+            assert!((0.0..1.0).contains(&v));
+            counts[i] += 1;
+            rescaled_sum[i] += v as f64;
+        }
+        for i in 0..6 {
+            let p = counts[i] as f32 / n as f32;
+            assert!((p - weights[i] / total).abs() < 1e-3, "item {i}: {p}");
+            if counts[i] > 1000 {
+                let mean = rescaled_sum[i] / counts[i] as f64;
+                assert!((mean - 0.5).abs() < 0.01, "item {i}: rescaled mean {mean}");
+            }
+        }
+        assert!(AliasTable::new(&[]).sample(0.3).is_none());
+        assert!(AliasTable::new(&[0.0, 0.0]).sample(0.3).is_none());
     }
 }
