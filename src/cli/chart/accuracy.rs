@@ -3,6 +3,7 @@
 //!
 //! ```sh
 //! pathtracer chart accuracy ../shared/scenes/cs184/sky/CBbunny.dae assets/charts
+//! pathtracer chart accuracy ../shared/scenes/cs184/sky/CBbunny.dae out --depths 5 --peer runs.jsonl
 //! ```
 //!
 //! Options after the two paths: `-r W H` (default 160 120), `--ref-spp N` (default 1024),
@@ -20,7 +21,8 @@
 //! SIZE FILE:LINE`); peer rows leave `rays`, `rmse` and `bias` empty and put `rel_noise` in
 //! `rel_rmse`. The whole file is read and checked before anything renders: an unreadable file,
 //! a malformed line, a missing or mistyped field, or no record for the scene is a one-line
-//! error naming the file (and line).
+//! error naming the file (and line); a depth with no record only gets a note on stderr. The
+//! printed fit (`err*sqrt(s)` and the ratios to hemisphere sampling) lists the peer series too.
 //!
 //! References. On the course scenes light sampling and hemisphere sampling converge to
 //! different images by design (SCENE_FORMAT.md, "Careful": the scene's area light and the
