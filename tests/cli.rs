@@ -263,3 +263,98 @@ fn chart_rejects_bad_input_and_draws_scaling() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(std::fs::read_to_string(&svg).unwrap().starts_with("<svg"));
 }
+
+#[test]
+fn chart_accuracy_checks_peer_files_first_and_draws_peer_runs() {
+    let dir = scratch_dir("peer");
+    let out = dir.join("charts");
+    std::fs::create_dir(&out).unwrap();
+    let scene = cornell();
+    let line = |renderer: &str, m: u32, spp: u32, seconds: f64, rel: f64| {
+        format!(
+            r#"{{"scene": "cornell.dae", "size": "400x300", "m": {m}, "spp": {spp}, "renderer": "{renderer}", "mitsuba_mapping": "quad", "seconds": {seconds}, "rel_noise": {rel}, "noise_sqrt_seconds": 0.2, "threads": 2}}"#
+        )
+    };
+    let good = line("mitsuba3 path (quad)", 1, 16, 2.4, 0.12);
+    let path = |p: PathBuf| p.to_str().unwrap().to_string();
+    let cases = [
+        (dir.join("no-such.jsonl"), "no-such.jsonl".to_string()),
+        (
+            write(&dir, "cut.jsonl", &format!("{good}\n{}\n", &good[..60])),
+            "cut.jsonl:2: column".to_string(),
+        ),
+        (
+            write(
+                &dir,
+                "field.jsonl",
+                &format!("{good}\n\n{}\n", good.replace("\"rel_noise\"", "\"noise\"")),
+            ),
+            "field.jsonl:3: missing field 'rel_noise'".to_string(),
+        ),
+        (
+            write(&dir, "null.jsonl", &good.replace("2.4", "null")),
+            "null.jsonl:1: column".to_string(),
+        ),
+        (
+            write(&dir, "other.jsonl", &good.replace("cornell.dae", "CBbunny.dae")),
+            "other.jsonl: no record for scene 'cornell.dae'".to_string(),
+        ),
+        (write(&dir, "empty.jsonl", ""), "empty.jsonl: no record".to_string()),
+    ];
+    let tiny = ["-r", "16", "12", "--spp", "1,2", "--ref-spp", "4", "--depths", "1"];
+    for (peer, want) in &cases {
+        let (s, o, p) = (path(scene.clone()), path(out.clone()), path(peer.clone()));
+        let mut args = vec!["chart", "accuracy", &s, &o];
+        args.extend(tiny);
+        args.extend(["--peer", &p]);
+        let run = pathtracer(&args);
+        assert_one_line_error(&run, want);
+        assert!(!String::from_utf8_lossy(&run.stdout).contains("-m 1"), "rendered before failing");
+        assert_eq!(std::fs::read_dir(&out).unwrap().count(), 0, "{want}: wrote output");
+    }
+    let (s, o) = (path(scene.clone()), path(out.clone()));
+    assert_one_line_error(&pathtracer(&["chart", "accuracy", &s, &o, "--peer"]), "--peer");
+
+    let peer = write(
+        &dir,
+        "peer.jsonl",
+        &[
+            good.clone(),
+            line("mitsuba3 path (quad)", 1, 4, 0.61, 0.25),
+            line("ours mis", 1, 16, 1.3, 0.09),
+            line("only at depth five", 5, 16, 9.0, 0.5),
+            good.replace("cornell.dae", "CBbunny.dae").replace("(quad)", "(other scene)"),
+        ]
+        .join("\n"),
+    );
+    let p = path(peer);
+    let mut args = vec!["chart", "accuracy", &s, &o];
+    args.extend(tiny);
+    args.extend(["--peer", &p]);
+    let run = pathtracer(&args);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let svg = std::fs::read_to_string(out.join("accuracy_cornell_m1.svg")).unwrap();
+    for want in ["mitsuba3 path (quad), peer run 400x300", "ours mis, peer run 400x300", "MIS"] {
+        assert!(svg.contains(want), "no '{want}' in the SVG");
+    }
+    for absent in ["only at depth five", "other scene"] {
+        assert!(!svg.contains(absent), "'{absent}' drawn");
+    }
+    let csv = std::fs::read_to_string(out.join("accuracy_cornell_m1.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().collect();
+    assert_eq!(rows[0], "integrator,spp,mean_spp,seconds,rays,rmse,rel_rmse,bias,source");
+    assert_eq!(rows.len(), 1 + 4 * 2 + 3, "{csv}");
+    assert!(rows[1..9].iter().all(|r| r.ends_with(",ours") && r.split(',').count() == 9));
+    let peer_rows: Vec<&str> =
+        rows[9..].iter().map(|r| r.split(",peer ").next().unwrap()).collect();
+    assert_eq!(
+        peer_rows,
+        [
+            "mitsuba3 path (quad),4,4,0.61,,,2.5e-1,",
+            "mitsuba3 path (quad),16,16,2.4,,,1.2e-1,",
+            "ours mis,16,16,1.3,,,9e-2,"
+        ]
+    );
+    assert!(rows[9].ends_with("peer.jsonl:2"), "{}", rows[9]);
+    std::fs::remove_dir_all(&dir).unwrap();
+}

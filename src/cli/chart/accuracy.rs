@@ -3,10 +3,26 @@
 //!
 //! ```sh
 //! pathtracer chart accuracy ../shared/scenes/cs184/sky/CBbunny.dae assets/charts
+//! pathtracer chart accuracy ../shared/scenes/cs184/sky/CBbunny.dae out --depths 5 --peer runs.jsonl
 //! ```
 //!
 //! Options after the two paths: `-r W H` (default 160 120), `--ref-spp N` (default 1024),
-//! `--spp LIST` (default 1,2,4,8,16,32,64), `-t N` (default 2), `--depths LIST` (default 1,5).
+//! `--spp LIST` (default 1,2,4,8,16,32,64), `-t N` (default 2), `--depths LIST` (default 1,5),
+//! `--peer FILE.jsonl`.
+//!
+//! Peer runs. `--peer FILE.jsonl` adds another renderer's measurements (JSON Lines from an
+//! external measuring tool, one render per line; the fields are in `peer.rs`): on the chart of
+//! depth m, the records whose `scene` is the scene file's name (e.g. `CBbunny.dae`) and whose
+//! `m` is m, one dashed series per renderer and image size, labelled e.g. "mitsuba3 path
+//! (quad), peer run 400x300", at (`seconds`, `rel_noise`). `rel_noise` is one render's relative
+//! noise measured from two seeds, which for an unbiased renderer compares with relative RMSE
+//! against the converged image; the peer's time is its own machine, size and thread count, as
+//! the label's size reminds. The CSV then gains a last column, `source` (`ours`, or `peer
+//! SIZE FILE:LINE`); peer rows leave `rays`, `rmse` and `bias` empty and put `rel_noise` in
+//! `rel_rmse`. The whole file is read and checked before anything renders: an unreadable file,
+//! a malformed line, a missing or mistyped field, or no record for the scene is a one-line
+//! error naming the file (and line); a depth with no record only gets a note on stderr. The
+//! printed fit (`err*sqrt(s)` and the ratios to hemisphere sampling) lists the peer series too.
 //!
 //! References. On the course scenes light sampling and hemisphere sampling converge to
 //! different images by design (SCENE_FORMAT.md, "Careful": the scene's area light and the
@@ -25,7 +41,10 @@ use pathtracer::integrator::{DirectLighting, Integrator};
 use pathtracer::metrics::Image;
 use pathtracer::render::RenderConfig;
 use pathtracer::scene::{self, Scene};
+use plotters::element::DashedPathElement;
 use plotters::prelude::*;
+
+use super::peer::{self, Series};
 
 struct Curve {
     name: &'static str,
@@ -46,6 +65,7 @@ fn run_with(args: &[String]) -> Result<(), String> {
     let (mut w, mut h, mut ref_spp, mut threads) = (160u32, 120u32, 1024u32, 2usize);
     let mut spps: Vec<u32> = vec![1, 2, 4, 8, 16, 32, 64];
     let mut depths: Vec<u32> = vec![1, 5];
+    let mut peer_path: Option<PathBuf> = None;
     let num = |s: Option<&String>| -> Result<u32, String> {
         s.and_then(|v| v.parse().ok()).filter(|&v| v > 0).ok_or("expected a positive number".into())
     };
@@ -66,6 +86,10 @@ fn run_with(args: &[String]) -> Result<(), String> {
             "--spp" => spps = list(args.get(i + 1))?,
             "--depths" => depths = list(args.get(i + 1))?,
             "-t" => threads = num(args.get(i + 1))? as usize,
+            "--peer" => {
+                let file = args.get(i + 1).ok_or("--peer: expected a JSON Lines file")?;
+                peer_path = Some(PathBuf::from(file));
+            }
             other => return Err(format!("unknown option '{other}'")),
         }
         i += 2;
@@ -73,6 +97,20 @@ fn run_with(args: &[String]) -> Result<(), String> {
     if !out_dir.is_dir() {
         return Err(format!("{}: not a directory", out_dir.display()));
     }
+    // Read and check the peer file before anything is loaded or rendered.
+    let peer_records = match &peer_path {
+        Some(path) => {
+            let file_name = scene_path.file_name().map(|s| s.to_string_lossy().into_owned());
+            let records = peer::read(path, file_name.as_deref().unwrap_or(""))?;
+            for &depth in &depths {
+                if !records.iter().any(|r| r.m == depth) {
+                    eprintln!("note: {}: no record at -m {depth}", path.display());
+                }
+            }
+            records
+        }
+        None => Vec::new(),
+    };
     let scene = scene::collada::load(&scene_path).map_err(|e| e.to_string())?;
     let accel = Accel::build(&scene, AccelKind::Bvh);
     let name = scene_path.file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned());
@@ -130,11 +168,14 @@ fn run_with(args: &[String]) -> Result<(), String> {
             "{name} -m {depth} ({}), {w}x{h}, {threads} threads: error vs render time",
             if depth == 1 { "direct light" } else { "path tracing" }
         );
+        let peers = peer::series(&peer_records, depth);
         let svg = out_dir.join(format!("accuracy_{name}_m{depth}.svg"));
-        plot(&svg, &title, &curves).map_err(|e| format!("{}: {e}", svg.display()))?;
+        plot(&svg, &title, &curves, &peers).map_err(|e| format!("{}: {e}", svg.display()))?;
         let csv = out_dir.join(format!("accuracy_{name}_m{depth}.csv"));
-        std::fs::write(&csv, to_csv(&curves)).map_err(|e| format!("{}: {e}", csv.display()))?;
-        print_summary(depth, &scene, &curves);
+        let peer_csv = peer_path.as_deref().map(|p| (p, peers.as_slice()));
+        std::fs::write(&csv, to_csv(&curves, peer_csv))
+            .map_err(|e| format!("{}: {e}", csv.display()))?;
+        print_summary(depth, &scene, &curves, &peers);
         eprintln!("wrote {} and {}", svg.display(), csv.display());
     }
     Ok(())
@@ -142,28 +183,39 @@ fn run_with(args: &[String]) -> Result<(), String> {
 
 /// Fits err = c / sqrt(t) to each curve (the Monte Carlo rate) and prints c, how many times
 /// lower the error is than hemisphere sampling's at equal time, and how many times less time it
-/// needs for equal error (the square).
-fn print_summary(depth: u32, scene: &Scene, curves: &[Curve]) {
-    let c_of = |pts: &[Point]| {
-        let logs: Vec<f64> =
-            pts.iter().map(|p| (p.error.image.rel_rmse_all * p.seconds.sqrt()).ln()).collect();
+/// needs for equal error (the square). Peer series follow, fitted the same way from their own
+/// times (their size, machine and threads may differ from ours).
+fn print_summary(depth: u32, scene: &Scene, curves: &[Curve], peers: &[Series]) {
+    // (spp, seconds, relative error) per point.
+    let c_of = |pts: &[(f64, f64, f64)]| {
+        let logs: Vec<f64> = pts.iter().map(|p| (p.2 * p.1.sqrt()).ln()).collect();
         (logs.iter().sum::<f64>() / logs.len() as f64).exp()
     };
-    let c_hemi = c_of(&curves[0].points);
+    let ours = |c: &Curve| -> Vec<(f64, f64, f64)> {
+        c.points.iter().map(|p| (p.mean_spp, p.seconds, p.error.image.rel_rmse_all)).collect()
+    };
+    let c_hemi = c_of(&ours(&curves[0]));
+    let rows: Vec<(String, Vec<_>)> = curves
+        .iter()
+        .map(|c| (c.name.to_string(), ours(c)))
+        .chain(peers.iter().map(|s| {
+            let pts = s.points.iter().map(|r| (r.spp as f64, r.seconds, r.rel_noise)).collect();
+            (s.label.clone(), pts)
+        }))
+        .collect();
+    let width = rows.iter().map(|r| r.0.chars().count()).max().unwrap_or(0).max(22);
     println!("-m {depth} ({} triangles):", scene.triangles.len());
     println!(
-        "  {:<22} {:>12} {:>16} {:>18} {:>16}",
+        "  {:<width$} {:>12} {:>16} {:>18} {:>16}",
         "integrator", "slope(spp)", "err*sqrt(s)", "hemi err / err", "hemi time / time"
     );
-    for c in curves {
-        let k = c_of(&c.points);
-        let slope = convergence::log_log_slope(
-            &c.points.iter().map(|p| (p.mean_spp, p.error.image.rmse_all)).collect::<Vec<_>>(),
-        )
-        .unwrap_or(f64::NAN);
+    for (name, pts) in rows {
+        let k = c_of(&pts);
+        let slope = convergence::log_log_slope(&pts.iter().map(|p| (p.0, p.2)).collect::<Vec<_>>())
+            .unwrap_or(f64::NAN);
         println!(
-            "  {:<22} {:>12.3} {:>16.5} {:>17.2}x {:>15.2}x",
-            c.name,
+            "  {:<width$} {:>12.3} {:>16.5} {:>17.2}x {:>15.2}x",
+            name,
             slope,
             k,
             c_hemi / k,
@@ -172,13 +224,27 @@ fn print_summary(depth: u32, scene: &Scene, curves: &[Curve]) {
     }
 }
 
-fn to_csv(curves: &[Curve]) -> String {
-    let mut s = String::from("integrator,spp,mean_spp,seconds,rays,rmse,rel_rmse,bias\n");
+/// A CSV field, quoted if it holds a comma, a quote or a line break (RFC 4180).
+fn csv_field(text: &str) -> String {
+    if text.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", text.replace('"', "\"\""))
+    } else {
+        text.to_string()
+    }
+}
+
+/// Our points, in the columns the command has always written. With a peer file (`peer`: its
+/// path and this depth's series) every row gains a last column, `source`: `ours`, or `peer
+/// SIZE FILE:LINE` for the peer's rows, which give spp, seconds and `rel_noise` as `rel_rmse`
+/// and leave the columns they do not measure empty.
+fn to_csv(curves: &[Curve], peer: Option<(&Path, &[Series])>) -> String {
+    let mut s = String::from("integrator,spp,mean_spp,seconds,rays,rmse,rel_rmse,bias");
+    s += if peer.is_some() { ",source\n" } else { "\n" };
     for c in curves {
         for p in &c.points {
             let e = &p.error.image;
             s += &format!(
-                "{},{},{},{},{},{:e},{:e},{:e}\n",
+                "{},{},{},{},{},{:e},{:e},{:e}",
                 c.name,
                 p.spp,
                 p.mean_spp,
@@ -188,19 +254,51 @@ fn to_csv(curves: &[Curve]) -> String {
                 e.rel_rmse_all,
                 e.bias_all
             );
+            s += if peer.is_some() { ",ours\n" } else { "\n" };
+        }
+    }
+    if let Some((path, series)) = peer {
+        for r in series.iter().flat_map(|s| &s.points) {
+            let source = format!("peer {} {}:{}", r.size, path.display(), r.line);
+            s += &format!(
+                "{},{},{},{},,,{:e},,{}\n",
+                csv_field(&r.renderer),
+                r.spp,
+                r.spp,
+                r.seconds,
+                r.rel_noise,
+                csv_field(&source)
+            );
         }
     }
     s
 }
 
-fn plot(path: &Path, title: &str, curves: &[Curve]) -> Result<(), Box<dyn std::error::Error>> {
-    let all = curves.iter().flat_map(|c| &c.points);
+/// Colours of the peer series (ours are red, blue, green and magenta), taken in turn.
+const PEER_COLORS: [RGBColor; 6] = [
+    RGBColor(0, 0, 0),
+    RGBColor(230, 120, 0),
+    RGBColor(0, 150, 150),
+    RGBColor(140, 70, 20),
+    RGBColor(120, 0, 170),
+    RGBColor(120, 120, 120),
+];
+
+fn plot(
+    path: &Path,
+    title: &str,
+    curves: &[Curve],
+    peers: &[Series],
+) -> Result<(), Box<dyn std::error::Error>> {
+    let ours =
+        curves.iter().flat_map(|c| &c.points).map(|p| (p.seconds, p.error.image.rel_rmse_all));
+    let theirs = peers.iter().flat_map(|s| &s.points).map(|r| (r.seconds, r.rel_noise));
     let (mut t0, mut t1, mut e0, mut e1) = (f64::MAX, 0f64, f64::MAX, 0f64);
-    for p in all {
-        t0 = t0.min(p.seconds);
-        t1 = t1.max(p.seconds);
-        e0 = e0.min(p.error.image.rel_rmse_all);
-        e1 = e1.max(p.error.image.rel_rmse_all);
+    for (t, e) in ours.chain(theirs) {
+        t0 = t0.min(t);
+        t1 = t1.max(t);
+        e0 = e0.min(e);
+        e1 = e1.max(e);
     }
     let root = SVGBackend::new(path, (900, 600)).into_drawing_area();
     root.fill(&WHITE)?;
@@ -228,6 +326,36 @@ fn plot(path: &Path, title: &str, curves: &[Curve]) -> Result<(), Box<dyn std::e
                 PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
             });
         chart.draw_series(pts.iter().map(|&p| Circle::new(p, 4, color.filled())))?;
+    }
+    // Peer runs: thin dashed lines through triangles, hollow squares or crosses (ours are solid
+    // lines through filled circles), one colour and marker each.
+    for (k, s) in peers.iter().enumerate() {
+        let pts: Vec<(f64, f64)> = s.points.iter().map(|r| (r.seconds, r.rel_noise)).collect();
+        let color = PEER_COLORS[k % PEER_COLORS.len()];
+        let style = color.stroke_width(2);
+        let dashes = move |len: i32| {
+            DashedPathElement::new(vec![(0, 0), (len, 0)], 4, 2, color.stroke_width(1))
+        };
+        // Each shape is its own element type, so the drawing code is a macro; `marker` makes
+        // the shape at a pixel offset from the point it is attached to.
+        macro_rules! draw {
+            ($marker:expr) => {{
+                let marker = $marker;
+                chart
+                    .draw_series(DashedLineSeries::new(pts.clone(), 6, 4, color.stroke_width(1)))?
+                    .label(s.label.as_str())
+                    .legend(move |(x, y)| EmptyElement::at((x, y)) + dashes(20) + marker((10, 0)));
+                chart.draw_series(pts.iter().map(|&p| EmptyElement::at(p) + marker((0, 0))))?;
+            }};
+        }
+        match k % 3 {
+            0 => draw!(move |c: (i32, i32)| TriangleMarker::new(c, 6, style)),
+            1 => draw!(move |(x, y): (i32, i32)| Rectangle::new(
+                [(x - 4, y - 4), (x + 4, y + 4)],
+                style
+            )),
+            _ => draw!(move |c: (i32, i32)| Cross::new(c, 4, style)),
+        }
     }
     chart
         .configure_series_labels()
