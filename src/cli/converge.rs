@@ -28,7 +28,8 @@ unbiased estimator gives -0.5 until the reference's own noise is reached).
   --mask FILE             also report errors over the mask's nonzero pixels
   --csv FILE              write the table as CSV
 
-RENDER OPTIONS are the renderer's: -t -l -m -H -r -a --shading --seed --no-bvh (not -s, -f).
+RENDER OPTIONS are the renderer's: -t -l -m -H -r -a --shading --seed --sampler --no-bvh
+(not -s, -f).
 Each render uses seed + spp, the reference seed + 2^32, so their noise is independent.";
 
 #[derive(Debug)]
