@@ -270,7 +270,7 @@ fn trace_sample_batch(
         stages::extend(
             ctx,
             &ws.rays,
-            stages::Coherence::of_depth(depth, ctx.packets),
+            stages::Coherence::of_depth(depth, ctx.packets, ctx.accel.is_large()),
             &mut ws.hits,
             &mut stats.trace,
         );
@@ -288,7 +288,7 @@ fn trace_sample_batch(
         stages::trace_shadow_rays(
             ctx,
             &ws.shadow,
-            stages::Coherence::of_depth(depth, ctx.packets),
+            stages::Coherence::of_depth(depth, ctx.packets, ctx.accel.is_large()),
             &mut ws.blocked,
             &mut ws.paths,
             &mut stats.trace,

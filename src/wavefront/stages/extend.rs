@@ -6,8 +6,10 @@ use crate::math::Hit;
 
 /// How a queue's rays are traced. Camera rays of a tile (and their shadow rays) are coherent:
 /// neighbouring queue entries are samples of the same or adjacent pixels, so 8-wide packets
-/// share most nodes. Bounce rays scatter, so they go one at a time. Packet and single-ray
-/// traversal return bit-identical hits, so the choice never changes the image.
+/// share most nodes. The first bounce still starts from neighbouring points, and on a
+/// cache-resident structure packets win there too; later bounces scatter and go one at a
+/// time, in streams. Packet and single-ray traversal return bit-identical hits, so the choice
+/// never changes the image.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Coherence {
     Coherent,
@@ -15,10 +17,13 @@ pub enum Coherence {
 }
 
 impl Coherence {
-    /// Camera rays (depth 0) are coherent; every later bounce is not. `packets: false`
-    /// treats every queue as incoherent (single rays throughout).
-    pub fn of_depth(depth: u32, packets: bool) -> Coherence {
-        if depth == 0 && packets {
+    /// Camera rays (depth 0) are coherent, and first bounces (depth 1) unless the structure
+    /// outgrows the caches (measured, PERF.md "Whole renders": packets at depth 1 took 0.93-1.0x
+    /// the time of streams on the course scenes and 1.02x on the 1M tori; packets at every depth
+    /// 0.95x on CBbunny but 1.13x on the tori). `packets: false` treats every queue as
+    /// incoherent (single rays throughout).
+    pub fn of_depth(depth: u32, packets: bool, large_structure: bool) -> Coherence {
+        if packets && (depth == 0 || (depth == 1 && !large_structure)) {
             Coherence::Coherent
         } else {
             Coherence::Incoherent
