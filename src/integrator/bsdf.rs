@@ -76,15 +76,18 @@ pub fn sample(m: &Material, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
                 // Total internal reflection: all light reflects.
                 None => Some(mirror),
                 // Choose the lobe with the Fresnel probability, so the weight needs no R factor.
+                // Schlick of |wo.z| on both sides, as the course does (from inside the physical
+                // choice is the outside angle: tests/bsdf.rs, the ignored
+                // `glass_reflects_from_inside_with_schlick_of_the_outside_angle`; PERF.md).
                 Some(_) if u[2] < schlick(wo.z.abs(), ior) => Some(mirror),
                 Some((wt, eta)) => {
-                    Some(BsdfSample { wi: wt, weight: transmittance / (eta * eta), pdf: 0.0 })
+                    Some(BsdfSample { wi: wt, weight: transmittance * (eta * eta), pdf: 0.0 })
                 }
             }
         }
         Material::Refraction { transmittance, ior, .. } => {
             let (wt, eta) = refract(wo, ior)?;
-            Some(BsdfSample { wi: wt, weight: transmittance / (eta * eta), pdf: 0.0 })
+            Some(BsdfSample { wi: wt, weight: transmittance * (eta * eta), pdf: 0.0 })
         }
         Material::Microfacet { alpha, eta, k } => {
             if wo.z <= 0.0 {
@@ -124,8 +127,13 @@ fn reflect(wo: Vec3) -> Vec3 {
 }
 
 /// Refracts wo through the interface (outside above +z has index 1, inside `ior`). Returns the
-/// transmitted direction and eta = n_incident / n_transmitted as seen by the light path, or
-/// `None` on total internal reflection.
+/// transmitted direction and eta = n_wo / n_wi, the index on the viewer's side over the index
+/// on the side the path continues into, or `None` on total internal reflection. Radiance
+/// scales with n^2 across the interface, so a transmitted sample's weight carries eta^2
+/// (1 / ior^2 entering the glass, ior^2 leaving it; pbrt-v4's radiance-mode factor). Before
+/// this was fixed the weight carried 1 / eta^2: the factors cancelled for paths that leave
+/// the object again, so images were unchanged, but Russian roulette saw throughputs 2.25x too
+/// high inside glass (tests/bsdf.rs, `transmission_scales_radiance_by_n_wo_over_n_wi_squared`).
 fn refract(wo: Vec3, ior: f32) -> Option<(Vec3, f32)> {
     let entering = wo.z > 0.0;
     let eta = if entering { 1.0 / ior } else { ior };
