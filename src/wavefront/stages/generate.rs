@@ -4,8 +4,9 @@ use super::super::{PathState, RayQueue, RenderContext, Tile};
 use crate::sampler::{Decision, PathSampler};
 
 /// Starts one path per (active pixel, sample) and queues its camera ray. With one sample per pixel the
-/// ray goes through the pixel centre (as the course does); otherwise it is jittered uniformly
-/// within the pixel.
+/// ray goes through the pixel centre (as the course does); otherwise it is jittered within the
+/// pixel by the sampler's camera-jitter decision (stratified over the pixel's samples with
+/// `--sampler sobol`, uniform with `independent`).
 pub fn generate_camera_rays(
     ctx: &RenderContext,
     tile: Tile,
