@@ -358,3 +358,72 @@ fn chart_accuracy_checks_peer_files_first_and_draws_peer_runs() {
     assert!(rows[9].ends_with("peer.jsonl:2"), "{}", rows[9]);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Renders 16x12 at 1 spp of the Cornell box: enough to tell whether rendering started.
+fn rendered(out: &Output) -> bool {
+    String::from_utf8_lossy(&out.stdout).contains("Rendering...")
+}
+
+#[test]
+fn outputs_that_name_an_input_are_refused_before_rendering() {
+    let dir = scratch_dir("clobber");
+    let scene_text = std::fs::read_to_string(cornell()).unwrap();
+    // A COLLADA file named scene.png: the default output name is the scene's own name.
+    let png_scene = write(&dir, "scene.png", &scene_text);
+    let dae = write(&dir, "box.dae", &scene_text);
+    let link = dir.join("link.png");
+    std::os::unix::fs::symlink(&dae, &link).unwrap();
+    let cwd_run = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_pathtracer"))
+            .current_dir(&dir)
+            .args(args)
+            .output()
+            .expect("run pathtracer")
+    };
+    let p = |q: &Path| q.to_str().unwrap().to_string();
+    for (out, want) in [
+        (cwd_run(&["-r", "16", "12", "scene.png"]), "scene.png"),
+        (pathtracer(&["-r", "16", "12", "-f", &p(&png_scene), &p(&png_scene)]), "same file"),
+        (cwd_run(&["-r", "16", "12", "-f", "./scene.png", "scene.png"]), "same file"),
+        (pathtracer(&["-r", "16", "12", "-f", &p(&link), &p(&dae)]), "link.png"),
+    ] {
+        assert_one_line_error(&out, want);
+        assert!(!rendered(&out), "rendered before failing");
+    }
+    assert_eq!(std::fs::read_to_string(&png_scene).unwrap(), scene_text);
+    assert_eq!(std::fs::read_to_string(&dae).unwrap(), scene_text);
+
+    // converge: the table and the reference must not replace the scene or the reference.
+    let reference = dir.join("ref.exr");
+    let ok = pathtracer(&["-r", "16", "12", "-q", "-f", &p(&reference), &p(&dae)]);
+    assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
+    let ref_bytes = std::fs::read(&reference).unwrap();
+    let (s, r) = (p(&dae), p(&reference));
+    for (args, want) in [
+        (vec!["converge", &s, "--spp", "1", "--reference", &r, "--csv", &r], "same file"),
+        (vec!["converge", &s, "--spp", "1", "--reference", &r, "--csv", &s], "same file"),
+        (vec!["converge", &s, "--spp", "1", "--ref-spp", "2", "--csv", &p(&dir)], "regular file"),
+    ] {
+        assert_one_line_error(&pathtracer(&args), want);
+    }
+    assert_eq!(std::fs::read(&reference).unwrap(), ref_bytes);
+    assert_eq!(std::fs::read_to_string(&dae).unwrap(), scene_text);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn outputs_that_are_not_regular_files_are_refused_before_rendering() {
+    let dir = scratch_dir("notfile");
+    let sub = dir.join("sub.png");
+    std::fs::create_dir(&sub).unwrap();
+    let out =
+        pathtracer(&["-r", "16", "12", "-f", sub.to_str().unwrap(), cornell().to_str().unwrap()]);
+    assert_one_line_error(&out, "not a regular file");
+    assert!(!rendered(&out), "rendered before failing");
+    assert!(sub.is_dir());
+    let out = pathtracer(&["gen", "cornell", "-o", sub.to_str().unwrap()]);
+    assert_one_line_error(&out, "not a regular file");
+    assert!(sub.is_dir());
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1, "left a temporary file");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

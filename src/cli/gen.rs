@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use super::parse_number;
+use super::{check_output, parse_number};
 use pathtracer::{bail, procedural, Error, Result};
 
 const USAGE: &str = "\
@@ -37,6 +37,7 @@ pub fn run(args: &[String]) -> Result<()> {
         }
     }
     let output = output.ok_or_else(|| Error::new("gen: no output file given (-o FILE.dae)"))?;
+    check_output("gen: -o", &output, &[])?;
     let text = match (kind.as_deref(), count) {
         (Some("cornell"), None) => procedural::cornell_box(),
         (Some("tori"), Some(n)) if (10_000..=16_000_000).contains(&n) => procedural::tori(n, seed),
