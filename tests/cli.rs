@@ -427,3 +427,28 @@ fn outputs_that_are_not_regular_files_are_refused_before_rendering() {
     assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1, "left a temporary file");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn compare_refuses_non_finite_pixels_and_mixed_formats() {
+    let dir = scratch_dir("nan");
+    let path = |n: &str| dir.join(n).to_str().unwrap().to_string();
+    let mut img = image::Rgb32FImage::from_pixel(4, 3, image::Rgb([0.5, 0.5, 0.5]));
+    img.save(path("good.exr")).unwrap();
+    img.put_pixel(2, 1, image::Rgb([0.5, f32::NAN, 0.5]));
+    img.put_pixel(3, 2, image::Rgb([0.5, f32::INFINITY, 0.5]));
+    img.save(path("nan.exr")).unwrap();
+    let mut inf = image::Rgb32FImage::from_pixel(4, 3, image::Rgb([0.5, 0.5, 0.5]));
+    inf.put_pixel(1, 2, image::Rgb([f32::INFINITY, 0.5, 0.5]));
+    inf.save(path("inf.exr")).unwrap();
+    image::RgbImage::new(4, 3).save(path("disp.png")).unwrap();
+    for (args, want) in [
+        (vec!["compare", &path("nan.exr"), &path("good.exr")], "(2, 1)"),
+        (vec!["compare", &path("good.exr"), &path("nan.exr")], "nan.exr"),
+        (vec!["compare", &path("good.exr"), &path("inf.exr")], "(1, 2)"),
+        (vec!["compare", &path("disp.png"), &path("good.exr")], "like with like"),
+        (vec!["compare", &path("good.exr"), &path("disp.png")], "like with like"),
+    ] {
+        assert_one_line_error(&pathtracer(&args), want);
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -62,6 +62,9 @@ pub fn run(args: &[String]) -> Result<()> {
     cli.config.progress = false;
     // Fail on bad reference, mask or output paths before minutes of rendering.
     let reference_file = a.reference.as_deref().map(metrics::read_image).transpose()?;
+    if let (Some(p), Some(r)) = (&a.reference, &reference_file) {
+        super::compare::check_finite(p, r)?;
+    }
     let mask = match &a.mask {
         Some(p) => Some(metrics::read_mask(p)?),
         None => None,
