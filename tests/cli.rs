@@ -452,3 +452,35 @@ fn compare_refuses_non_finite_pixels_and_mixed_formats() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn gen_and_chart_accuracy_errors_say_what_is_wrong() {
+    let dir = scratch_dir("msgs");
+    let o = dir.join("t.dae");
+    let o = o.to_str().unwrap();
+    assert_one_line_error(&pathtracer(&["gen", "cornell", "5", "-o", o]), "takes no count");
+    assert_one_line_error(&pathtracer(&["gen", "tori", "many", "-o", o]), "gen tori");
+    assert!(!dir.join("t.dae").exists());
+    let scene = cornell();
+    let (s, d) = (scene.to_str().unwrap(), dir.to_str().unwrap());
+    for (extra, want) in [
+        (vec!["-r", "0", "6"], "-r width: expected a positive number, got '0'"),
+        (vec!["-r", "8", "x"], "-r height: expected a positive number, got 'x'"),
+        (vec!["-r", "8"], "-r height"),
+        (vec!["-t", "0"], "-t: "),
+        (vec!["--ref-spp", "-1"], "--ref-spp: "),
+        (vec!["--spp", "0"], "--spp: "),
+        (vec!["--spp", "1,0,4"], "--spp: "),
+        (vec!["--spp", ""], "--spp: "),
+        (vec!["--spp"], "--spp"),
+        (vec!["--depths", "1,a"], "--depths: "),
+    ] {
+        let mut args = vec!["chart", "accuracy", s, d, "-r", "16", "12", "--ref-spp", "2"];
+        args.extend(extra);
+        let out = pathtracer(&args);
+        assert_one_line_error(&out, want);
+        assert!(String::from_utf8_lossy(&out.stdout).is_empty());
+    }
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
