@@ -358,3 +358,129 @@ fn chart_accuracy_checks_peer_files_first_and_draws_peer_runs() {
     assert!(rows[9].ends_with("peer.jsonl:2"), "{}", rows[9]);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Renders 16x12 at 1 spp of the Cornell box: enough to tell whether rendering started.
+fn rendered(out: &Output) -> bool {
+    String::from_utf8_lossy(&out.stdout).contains("Rendering...")
+}
+
+#[test]
+fn outputs_that_name_an_input_are_refused_before_rendering() {
+    let dir = scratch_dir("clobber");
+    let scene_text = std::fs::read_to_string(cornell()).unwrap();
+    // A COLLADA file named scene.png: the default output name is the scene's own name.
+    let png_scene = write(&dir, "scene.png", &scene_text);
+    let dae = write(&dir, "box.dae", &scene_text);
+    let link = dir.join("link.png");
+    std::os::unix::fs::symlink(&dae, &link).unwrap();
+    let cwd_run = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_pathtracer"))
+            .current_dir(&dir)
+            .args(args)
+            .output()
+            .expect("run pathtracer")
+    };
+    let p = |q: &Path| q.to_str().unwrap().to_string();
+    for (out, want) in [
+        (cwd_run(&["-r", "16", "12", "scene.png"]), "scene.png"),
+        (pathtracer(&["-r", "16", "12", "-f", &p(&png_scene), &p(&png_scene)]), "same file"),
+        (cwd_run(&["-r", "16", "12", "-f", "./scene.png", "scene.png"]), "same file"),
+        (pathtracer(&["-r", "16", "12", "-f", &p(&link), &p(&dae)]), "link.png"),
+    ] {
+        assert_one_line_error(&out, want);
+        assert!(!rendered(&out), "rendered before failing");
+    }
+    assert_eq!(std::fs::read_to_string(&png_scene).unwrap(), scene_text);
+    assert_eq!(std::fs::read_to_string(&dae).unwrap(), scene_text);
+
+    // converge: the table and the reference must not replace the scene or the reference.
+    let reference = dir.join("ref.exr");
+    let ok = pathtracer(&["-r", "16", "12", "-q", "-f", &p(&reference), &p(&dae)]);
+    assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
+    let ref_bytes = std::fs::read(&reference).unwrap();
+    let (s, r) = (p(&dae), p(&reference));
+    for (args, want) in [
+        (vec!["converge", &s, "--spp", "1", "--reference", &r, "--csv", &r], "same file"),
+        (vec!["converge", &s, "--spp", "1", "--reference", &r, "--csv", &s], "same file"),
+        (vec!["converge", &s, "--spp", "1", "--ref-spp", "2", "--csv", &p(&dir)], "regular file"),
+    ] {
+        assert_one_line_error(&pathtracer(&args), want);
+    }
+    assert_eq!(std::fs::read(&reference).unwrap(), ref_bytes);
+    assert_eq!(std::fs::read_to_string(&dae).unwrap(), scene_text);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn outputs_that_are_not_regular_files_are_refused_before_rendering() {
+    let dir = scratch_dir("notfile");
+    let sub = dir.join("sub.png");
+    std::fs::create_dir(&sub).unwrap();
+    let out =
+        pathtracer(&["-r", "16", "12", "-f", sub.to_str().unwrap(), cornell().to_str().unwrap()]);
+    assert_one_line_error(&out, "not a regular file");
+    assert!(!rendered(&out), "rendered before failing");
+    assert!(sub.is_dir());
+    let out = pathtracer(&["gen", "cornell", "-o", sub.to_str().unwrap()]);
+    assert_one_line_error(&out, "not a regular file");
+    assert!(sub.is_dir());
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1, "left a temporary file");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn compare_refuses_non_finite_pixels_and_mixed_formats() {
+    let dir = scratch_dir("nan");
+    let path = |n: &str| dir.join(n).to_str().unwrap().to_string();
+    let mut img = image::Rgb32FImage::from_pixel(4, 3, image::Rgb([0.5, 0.5, 0.5]));
+    img.save(path("good.exr")).unwrap();
+    img.put_pixel(2, 1, image::Rgb([0.5, f32::NAN, 0.5]));
+    img.put_pixel(3, 2, image::Rgb([0.5, f32::INFINITY, 0.5]));
+    img.save(path("nan.exr")).unwrap();
+    let mut inf = image::Rgb32FImage::from_pixel(4, 3, image::Rgb([0.5, 0.5, 0.5]));
+    inf.put_pixel(1, 2, image::Rgb([f32::INFINITY, 0.5, 0.5]));
+    inf.save(path("inf.exr")).unwrap();
+    image::RgbImage::new(4, 3).save(path("disp.png")).unwrap();
+    for (args, want) in [
+        (vec!["compare", &path("nan.exr"), &path("good.exr")], "(2, 1)"),
+        (vec!["compare", &path("good.exr"), &path("nan.exr")], "nan.exr"),
+        (vec!["compare", &path("good.exr"), &path("inf.exr")], "(1, 2)"),
+        (vec!["compare", &path("disp.png"), &path("good.exr")], "like with like"),
+        (vec!["compare", &path("good.exr"), &path("disp.png")], "like with like"),
+    ] {
+        assert_one_line_error(&pathtracer(&args), want);
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn gen_and_chart_accuracy_errors_say_what_is_wrong() {
+    let dir = scratch_dir("msgs");
+    let o = dir.join("t.dae");
+    let o = o.to_str().unwrap();
+    assert_one_line_error(&pathtracer(&["gen", "cornell", "5", "-o", o]), "takes no count");
+    assert_one_line_error(&pathtracer(&["gen", "tori", "many", "-o", o]), "gen tori");
+    assert!(!dir.join("t.dae").exists());
+    let scene = cornell();
+    let (s, d) = (scene.to_str().unwrap(), dir.to_str().unwrap());
+    for (extra, want) in [
+        (vec!["-r", "0", "6"], "-r width: expected a positive number, got '0'"),
+        (vec!["-r", "8", "x"], "-r height: expected a positive number, got 'x'"),
+        (vec!["-r", "8"], "-r height"),
+        (vec!["-t", "0"], "-t: "),
+        (vec!["--ref-spp", "-1"], "--ref-spp: "),
+        (vec!["--spp", "0"], "--spp: "),
+        (vec!["--spp", "1,0,4"], "--spp: "),
+        (vec!["--spp", ""], "--spp: "),
+        (vec!["--spp"], "--spp"),
+        (vec!["--depths", "1,a"], "--depths: "),
+    ] {
+        let mut args = vec!["chart", "accuracy", s, d, "-r", "16", "12", "--ref-spp", "2"];
+        args.extend(extra);
+        let out = pathtracer(&args);
+        assert_one_line_error(&out, want);
+        assert!(String::from_utf8_lossy(&out.stdout).is_empty());
+    }
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
+    std::fs::remove_dir_all(&dir).unwrap();
+}

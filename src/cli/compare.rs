@@ -1,9 +1,9 @@
 //! `pathtracer compare IMAGE REFERENCE [--mask MASK]`: error metrics of an image against a
 //! reference (see `pathtracer::metrics` for the definitions).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use pathtracer::metrics::{self, Comparison, RegionError};
+use pathtracer::metrics::{self, Comparison, Image, RegionError};
 use pathtracer::{bail, Error, Result};
 
 const USAGE: &str = "\
@@ -11,7 +11,7 @@ Usage: pathtracer compare IMAGE REFERENCE [--mask MASK.png]
 
 Prints RMSE, relative RMSE (RMSE / mean of the reference) and mean bias (image - reference) per
 channel and over all channels, for the whole image and for the mask's nonzero pixels.
-EXR files are read as linear radiance; PNG as display values in [0, 1] (compare PNG with PNG).
+EXR files are read as linear radiance; PNG as display values in [0, 1]: both images must be\nof the same kind (EXR with EXR, PNG with PNG). A NaN or infinite pixel is an error.
 Both images (and the mask) must have the same size.";
 
 pub fn run(args: &[String]) -> Result<()> {
@@ -22,6 +22,19 @@ pub fn run(args: &[String]) -> Result<()> {
     let (image_path, reference_path, mask_path) = parse(args)?;
     let image = metrics::read_image(&image_path)?;
     let reference = metrics::read_image(&reference_path)?;
+    let (a_linear, b_linear) = (is_linear(&image_path)?, is_linear(&reference_path)?);
+    if a_linear != b_linear {
+        let kind = |linear| if linear { "EXR (linear radiance)" } else { "display values" };
+        bail!(
+            "compare: {} holds {} but {} holds {}: compare like with like (EXR with EXR, PNG with PNG)",
+            image_path.display(),
+            kind(a_linear),
+            reference_path.display(),
+            kind(b_linear)
+        );
+    }
+    check_finite(&image_path, &image)?;
+    check_finite(&reference_path, &reference)?;
     let mask = match &mask_path {
         Some(p) => {
             let (w, h, m) = metrics::read_mask(p)?;
@@ -44,6 +57,31 @@ pub fn run(args: &[String]) -> Result<()> {
         e.context(format!("compare {} {}", image_path.display(), reference_path.display()))
     })?;
     print!("{}", format_comparison(&c));
+    Ok(())
+}
+
+/// Whether `path` holds linear values (EXR) rather than display values (PNG), by its contents.
+fn is_linear(path: &Path) -> Result<bool> {
+    let format = image::ImageReader::open(path)
+        .and_then(|r| r.with_guessed_format())
+        .map_err(|e| Error::new(format!("{}: cannot read: {e}", path.display())))?
+        .format();
+    Ok(matches!(format, Some(image::ImageFormat::OpenExr | image::ImageFormat::Hdr)))
+}
+
+/// A NaN or infinite pixel makes every metric NaN or infinite: name the first one instead.
+pub(super) fn check_finite(path: &Path, image: &Image) -> Result<()> {
+    if let Some(i) = image.pixels.iter().position(|p| !p.is_finite()) {
+        let (x, y) = (i % image.width as usize, i / image.width as usize);
+        let p = image.pixels[i];
+        bail!(
+            "{}: pixel ({x}, {y}) (x, y from the top left) is not finite: ({}, {}, {})",
+            path.display(),
+            p.x,
+            p.y,
+            p.z
+        );
+    }
     Ok(())
 }
 

@@ -5,7 +5,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use super::render::{available_threads, lighting_warnings, parse_args};
-use super::{parse_in_range, parse_number};
+use super::{check_output, parse_in_range, parse_number};
 use pathtracer::accel::Accel;
 use pathtracer::convergence::{self, Point};
 use pathtracer::metrics::{self, Image};
@@ -62,12 +62,24 @@ pub fn run(args: &[String]) -> Result<()> {
     cli.config.progress = false;
     // Fail on bad reference, mask or output paths before minutes of rendering.
     let reference_file = a.reference.as_deref().map(metrics::read_image).transpose()?;
+    if let (Some(p), Some(r)) = (&a.reference, &reference_file) {
+        super::compare::check_finite(p, r)?;
+    }
     let mask = match &a.mask {
         Some(p) => Some(metrics::read_mask(p)?),
         None => None,
     };
-    for p in a.csv.iter().chain(&a.write_reference) {
+    let mut inputs: Vec<&Path> = vec![&cli.scene];
+    inputs.extend(a.reference.as_deref());
+    inputs.extend(a.mask.as_deref());
+    if let Some(p) = &a.csv {
         check_parent(p)?;
+        check_output("converge: --csv", p, &inputs)?;
+    }
+    if let Some(p) = &a.write_reference {
+        check_parent(p)?;
+        inputs.extend(a.csv.as_deref());
+        check_output("converge: --write-reference", p, &inputs)?;
     }
 
     let scene = scene::collada::load(&cli.scene)?;

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use super::parse_number;
+use super::{check_output, parse_number};
 use pathtracer::{bail, procedural, Error, Result};
 
 const USAGE: &str = "\
@@ -32,11 +32,19 @@ pub fn run(args: &[String]) -> Result<()> {
                 bail!("gen: unknown option '{a}' (see gen --help)")
             }
             word if kind.is_none() => kind = Some(word.to_string()),
-            number if count.is_none() => count = Some(parse_number::<usize>("gen tori", number)?),
+            number if count.is_none() => count = Some(number.to_string()),
             extra => bail!("gen: unexpected argument '{extra}'"),
         }
     }
     let output = output.ok_or_else(|| Error::new("gen: no output file given (-o FILE.dae)"))?;
+    check_output("gen: -o", &output, &[])?;
+    let count = match (kind.as_deref(), count) {
+        (Some("cornell"), Some(n)) => {
+            bail!("gen cornell takes no count, got '{n}' (usage: gen cornell -o FILE.dae)")
+        }
+        (Some("tori"), Some(n)) => Some(parse_number::<usize>("gen tori", &n)?),
+        (_, n) => n.map(|_| 0), // An unknown scene: reported below.
+    };
     let text = match (kind.as_deref(), count) {
         (Some("cornell"), None) => procedural::cornell_box(),
         (Some("tori"), Some(n)) if (10_000..=16_000_000).contains(&n) => procedural::tori(n, seed),

@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use super::{parse_in_range, parse_number};
+use super::{check_output, parse_in_range, parse_number};
 use pathtracer::accel::{Accel, AccelKind};
 use pathtracer::integrator::{DirectLighting, Integrator};
 use pathtracer::render::{render, RenderConfig};
@@ -84,6 +84,12 @@ fn print_info(cli: &Cli) -> Result<()> {
 fn render_to_file(cli: &Cli) -> Result<()> {
     let output = cli.output.clone().unwrap_or_else(|| default_output(&cli.scene));
     check_output_path(&output)?;
+    let what = if cli.output.is_some() { "-f" } else { "output (the scene's name with .png)" };
+    check_output(what, &output, &[&cli.scene])?;
+    if cli.config.adaptive.is_some() {
+        let rate = pathtracer::film::rate_image_path(&output);
+        check_output("rate image", &rate, &[&cli.scene])?;
+    }
     let config = &cli.config;
     let threads = if config.threads == 0 { available_threads() } else { config.threads };
     println!("[PathTracer] Input scene file: {}", cli.scene.display());

@@ -66,26 +66,36 @@ fn run_with(args: &[String]) -> Result<(), String> {
     let mut spps: Vec<u32> = vec![1, 2, 4, 8, 16, 32, 64];
     let mut depths: Vec<u32> = vec![1, 5];
     let mut peer_path: Option<PathBuf> = None;
-    let num = |s: Option<&String>| -> Result<u32, String> {
-        s.and_then(|v| v.parse().ok()).filter(|&v| v > 0).ok_or("expected a positive number".into())
+    // Every flag error names its flag and the text it got.
+    let num = |flag: &str, s: Option<&String>| -> Result<u32, String> {
+        let s = s.ok_or(format!("{flag}: expected a positive number, got nothing"))?;
+        s.parse()
+            .ok()
+            .filter(|&v| v > 0)
+            .ok_or(format!("{flag}: expected a positive number, got '{s}'"))
     };
-    let list = |s: Option<&String>| -> Result<Vec<u32>, String> {
-        s.ok_or("expected a list")?
-            .split(',')
-            .map(|t| t.parse().map_err(|_| format!("'{t}' is not a number")))
+    // A comma-separated list of numbers of at least `min` (spp: 1, depths: 0).
+    let list = |flag: &str, s: Option<&String>, min: u32| -> Result<Vec<u32>, String> {
+        let s = s.ok_or(format!("{flag}: expected a comma-separated list, got nothing"))?;
+        s.split(',')
+            .map(|t| {
+                t.trim().parse::<u32>().ok().filter(|&v| v >= min).ok_or(format!(
+                    "{flag}: expected a comma-separated list of numbers of at least {min}, got '{s}'"
+                ))
+            })
             .collect()
     };
     let mut i = 2;
     while i < args.len() {
         match args[i].as_str() {
             "-r" => {
-                (w, h) = (num(args.get(i + 1))?, num(args.get(i + 2))?);
+                (w, h) = (num("-r width", args.get(i + 1))?, num("-r height", args.get(i + 2))?);
                 i += 1;
             }
-            "--ref-spp" => ref_spp = num(args.get(i + 1))?,
-            "--spp" => spps = list(args.get(i + 1))?,
-            "--depths" => depths = list(args.get(i + 1))?,
-            "-t" => threads = num(args.get(i + 1))? as usize,
+            "--ref-spp" => ref_spp = num("--ref-spp", args.get(i + 1))?,
+            "--spp" => spps = list("--spp", args.get(i + 1), 1)?,
+            "--depths" => depths = list("--depths", args.get(i + 1), 0)?,
+            "-t" => threads = num("-t", args.get(i + 1))? as usize,
             "--peer" => {
                 let file = args.get(i + 1).ok_or("--peer: expected a JSON Lines file")?;
                 peer_path = Some(PathBuf::from(file));
