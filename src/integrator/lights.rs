@@ -82,10 +82,6 @@ impl AliasTable {
         AliasTable { buckets }
     }
 
-    pub fn is_empty(&self) -> bool {
-        self.buckets.is_empty()
-    }
-
     /// The picked index and `u` rescaled to [0, 1) within the picked share.
     #[inline]
     pub fn sample(&self, u: f32) -> Option<(usize, f32)> {
