@@ -74,6 +74,8 @@ fn bad_flags_fail_cleanly() {
         (vec!["-r", "-3", "600", s], "out of range"),
         (vec!["-s", "many", s], "not a valid number"),
         (vec!["--frobnicate", s], "unknown option"),
+        (vec!["--sampler", "halton", s], "unknown sampler 'halton'"),
+        (vec![s, "--sampler"], "--sampler needs a value"),
         (vec!["-f", "out.jpg", s], ".png or .exr"),
         (vec!["-f", "/no/such/dir/x.png", s], "does not exist"),
         (vec![], "no scene file"),

@@ -4,6 +4,7 @@ mod common;
 
 use common::{coincident_light_box, render_pixels, SceneBuilder, HEMISPHERE, LIGHT, MIS};
 use pathtracer::math::Vec3;
+use pathtracer::sampler::SamplerKind;
 use pathtracer::scene::{Light, Material, Scene};
 use std::f32::consts::PI;
 
@@ -136,15 +137,19 @@ fn light_and_mis_sampling_agree_with_global_illumination() {
 #[test]
 fn same_seed_gives_bit_identical_images_for_any_thread_count() {
     let scene = coincident_light_box();
-    for integrator in [LIGHT, HEMISPHERE, MIS] {
+    let samplers = [SamplerKind::Sobol, SamplerKind::Independent];
+    for (integrator, sampler) in
+        [LIGHT, HEMISPHERE, MIS].into_iter().flat_map(|i| samplers.map(|s| (i, s)))
+    {
         let run = |threads| {
             render_pixels(&scene, integrator, |c| {
-                (c.width, c.height, c.spp, c.max_depth, c.threads) = (37, 29, 4, 3, threads)
+                (c.width, c.height, c.spp, c.max_depth, c.threads, c.sampler) =
+                    (37, 29, 4, 3, threads, sampler)
             })
         };
         let one = run(1);
-        assert_eq!(one, run(2), "{integrator:?}");
-        assert_eq!(one, run(3), "{integrator:?}");
+        assert_eq!(one, run(2), "{integrator:?} {sampler:?}");
+        assert_eq!(one, run(3), "{integrator:?} {sampler:?}");
         assert!(one.iter().all(|p| p.is_finite()));
     }
 }
