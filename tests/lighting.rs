@@ -256,3 +256,17 @@ fn light_hemisphere_and_mis_agree_on_the_assets_cornell_box_with_global_illumina
     let hemi = mean_and_error_at(&scene, HEMISPHERE, 1024, 5, size);
     assert_agree("assets/cornell.dae -m 5: light vs hemisphere", light, hemi);
 }
+
+/// A library caller may ask for zero light samples (the command line refuses `-l 0`): the
+/// render must not panic (the shadow-queue batch sizing divides by the samples per vertex)
+/// and light sampling then adds no direct light.
+#[test]
+fn zero_light_samples_render_without_panicking() {
+    let scene = coincident_light_box();
+    for integrator in [LIGHT, HEMISPHERE, MIS] {
+        let px = render_pixels(&scene, integrator, |c| {
+            (c.width, c.height, c.spp, c.light_samples, c.max_depth) = (8, 6, 2, 0, 2)
+        });
+        assert!(px.iter().all(|p| p.is_finite()), "{integrator:?}");
+    }
+}

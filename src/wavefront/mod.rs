@@ -52,7 +52,7 @@ fn sample_batch(ctx: &RenderContext) -> u32 {
         .map(|light| if light.is_delta() { 1 } else { l })
         .fold(if ctx.lights.has_emitters() { l } else { 0 }, u32::saturating_add);
     let hemisphere = (ctx.scene.lights.len().max(1) as u32).saturating_mul(l);
-    let per_vertex = sampled.max(hemisphere);
+    let per_vertex = sampled.max(hemisphere).max(1);
     let pixels = TILE * TILE;
     (SHADOW_QUEUE_CAP / pixels.saturating_mul(per_vertex)).clamp(1, SAMPLE_BATCH)
 }
