@@ -1,6 +1,8 @@
 //! The `pathtracer` command line: rendering with the course's flags (`-t -s -l -m -H -f -r -a`),
 //! and the `bench`, `compare` and `converge` subcommands. Parses arguments, then calls the library. Every user error is
-//! one line on stderr and exit code 2; nothing is written unless the render succeeded.
+//! one line on stderr and exit code 2; nothing is written unless the render succeeded. All
+//! output goes through `cli::write_stdout` / `write_stderr` (never `println!`, which panics
+//! on a full or closed stdout).
 
 use std::process::ExitCode;
 
@@ -16,11 +18,5 @@ fn main() -> ExitCode {
         Some("chart") => cli::chart::run(&args[1..]),
         _ => cli::render::run(&args),
     };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e}");
-            ExitCode::from(2)
-        }
-    }
+    cli::exit_code(result)
 }

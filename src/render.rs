@@ -181,12 +181,15 @@ fn report_progress(done: &AtomicUsize, total: usize, start: Instant) {
         {
             last_print = Instant::now();
             let pct = 100 * d / total.max(1);
-            eprint!("\r[PathTracer] Rendering... {pct:3}% ({:.1}s)", start.elapsed().as_secs_f64());
-            let _ = std::io::stderr().flush();
+            // Never `eprint!`, which panics if the terminal is gone.
+            let mut stderr = std::io::stderr().lock();
+            let secs = start.elapsed().as_secs_f64();
+            let _ = write!(stderr, "\r[PathTracer] Rendering... {pct:3}% ({secs:.1}s)");
+            let _ = stderr.flush();
             printed = true;
         }
     }
     if printed {
-        eprint!("\r\x1b[2K");
+        let _ = write!(std::io::stderr(), "\r\x1b[2K");
     }
 }

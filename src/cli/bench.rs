@@ -39,8 +39,7 @@ struct BenchArgs {
 
 pub fn run(args: &[String]) -> Result<()> {
     if args.iter().any(|a| a == "-h" || a == "--help") {
-        println!("{USAGE}");
-        return Ok(());
+        return outln!("{USAGE}");
     }
     let a = parse(args)?;
     let loaded = scene::collada::load(&a.scene)?;
@@ -100,18 +99,18 @@ pub fn run(args: &[String]) -> Result<()> {
                     / scene.triangles.len().max(1) as f64,
             };
             if a.json {
-                println!("{}", r.to_json());
+                outln!("{}", r.to_json())?;
             }
             results.push(r);
         }
     }
     let table = format_table(&results);
     if a.json {
-        eprint!("{table}");
+        super::write_stderr(format_args!("{table}"));
+        Ok(())
     } else {
-        print!("{table}");
+        out!("{table}")
     }
-    Ok(())
 }
 
 fn format_table(results: &[BenchResult]) -> String {

@@ -16,8 +16,7 @@ Both images (and the mask) must have the same size.";
 
 pub fn run(args: &[String]) -> Result<()> {
     if args.iter().any(|a| a == "-h" || a == "--help") {
-        println!("{USAGE}");
-        return Ok(());
+        return outln!("{USAGE}");
     }
     let (image_path, reference_path, mask_path) = parse(args)?;
     let image = metrics::read_image(&image_path)?;
@@ -56,8 +55,7 @@ pub fn run(args: &[String]) -> Result<()> {
     let c = metrics::compare(&image, &reference, mask.as_deref()).map_err(|e| {
         e.context(format!("compare {} {}", image_path.display(), reference_path.display()))
     })?;
-    print!("{}", format_comparison(&c));
-    Ok(())
+    out!("{}", format_comparison(&c))
 }
 
 /// Whether `path` holds linear values (EXR) rather than display values (PNG), by its contents.

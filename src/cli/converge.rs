@@ -45,8 +45,7 @@ struct ConvergeArgs {
 
 pub fn run(args: &[String]) -> Result<()> {
     if args.iter().any(|a| a == "-h" || a == "--help") {
-        println!("{USAGE}");
-        return Ok(());
+        return outln!("{USAGE}");
     }
     let a = parse(args)?;
     let mut cli = parse_args(&a.render_args).map_err(|e| e.context("converge"))?;
@@ -84,7 +83,7 @@ pub fn run(args: &[String]) -> Result<()> {
 
     let scene = scene::collada::load(&cli.scene)?;
     for w in scene.warnings.iter().chain(&lighting_warnings(&scene, cli.config.integrator)) {
-        eprintln!("warning: {}: {w}", cli.scene.display());
+        errln!("warning: {}: {w}", cli.scene.display());
     }
     let accel = Accel::build(&scene, cli.accel);
     let reference = match (reference_file, a.ref_spp) {
@@ -96,7 +95,7 @@ pub fn run(args: &[String]) -> Result<()> {
                 ..cli.config.clone()
             };
             let (image, out) = convergence::render_image(&scene, &accel, &config)?;
-            eprintln!("[converge] reference: {n} spp in {:.2} s", out.time.as_secs_f64());
+            errln!("[converge] reference: {n} spp in {:.2} s", out.time.as_secs_f64());
             if let Some(p) = &a.write_reference {
                 metrics::write_exr(p, &image)?;
             }
@@ -123,11 +122,11 @@ pub fn run(args: &[String]) -> Result<()> {
     };
     let points =
         convergence::sweep(&scene, &accel, &cli.config, &reference, mask.as_deref(), &a.spps)?;
-    print!("{}", format_table(&points, &reference));
+    // The CSV first: a table that cannot be printed (a full disk, `| head -1`) loses no file.
     if let Some(p) = &a.csv {
         write_atomically(p, csv(&points).as_bytes())?;
     }
-    Ok(())
+    out!("{}", format_table(&points, &reference))
 }
 
 fn parse(args: &[String]) -> Result<ConvergeArgs> {

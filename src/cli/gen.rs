@@ -17,8 +17,7 @@ Writes a deterministic scene in the course's COLLADA dialect:
 
 pub fn run(args: &[String]) -> Result<()> {
     if args.iter().any(|a| a == "-h" || a == "--help") {
-        println!("{USAGE}");
-        return Ok(());
+        return outln!("{USAGE}");
     }
     let (mut kind, mut count, mut seed, mut output) = (None, None, 1u64, None);
     let mut it = args.iter().map(String::as_str);
@@ -63,6 +62,5 @@ pub fn run(args: &[String]) -> Result<()> {
         let _ = std::fs::remove_file(&tmp);
         fail(e)
     })?;
-    println!("wrote {}", output.display());
-    Ok(())
+    outln!("wrote {}", output.display())
 }

@@ -1,5 +1,31 @@
 //! The command line: subcommands parse their arguments into library calls. Every user error
 //! is one line on stderr and exit code 2.
+//!
+//! All printing goes through [`write_stdout`] and [`write_stderr`] (the `outln!`, `out!` and
+//! `errln!` macros), never `println!`, which panics when stdout is full or closed. A failed
+//! write to stdout is an [`Error`] like any other (`writing to standard output: No space left
+//! on device`, exit 2), except a closed pipe (`| head -1`), which ends the program quietly
+//! with exit 0; [`exit_code`] decides. Commands that write files print through a [`Report`],
+//! so a failed print never stops the file from being written.
+
+/// `outln!("...")`: one line on stdout; `Err` (one line) if it cannot be written.
+macro_rules! outln {
+    ($($arg:tt)*) => {
+        $crate::cli::write_stdout(format_args!("{}\n", format_args!($($arg)*)))
+    };
+}
+
+/// `out!("...")`: text on stdout without a line break; `Err` if it cannot be written.
+macro_rules! out {
+    ($($arg:tt)*) => { $crate::cli::write_stdout(format_args!($($arg)*)) };
+}
+
+/// `errln!("...")`: one line on stderr (warnings, notes); never panics (see [`write_stderr`]).
+macro_rules! errln {
+    ($($arg:tt)*) => {
+        $crate::cli::write_stderr(format_args!("{}\n", format_args!($($arg)*)))
+    };
+}
 
 pub mod bench;
 pub mod chart;
@@ -8,9 +34,101 @@ pub mod converge;
 pub mod gen;
 pub mod render;
 
+use std::fmt;
+use std::io::{self, ErrorKind, Write};
 use std::path::Path;
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::OnceLock;
 
 use pathtracer::{bail, Error, Result};
+
+/// The first failed write to stdout: later writes fail the same way without trying again
+/// (so a closed pipe gives one error, not one per line).
+static STDOUT_FAILED: OnceLock<(ErrorKind, Error)> = OnceLock::new();
+/// Set when a write to stderr failed with anything but a closed pipe: the exit code is then 2.
+static STDERR_FAILED: AtomicBool = AtomicBool::new(false);
+
+/// Writes `args` to stdout and flushes it. A failure is a one-line [`Error`], and sticks: every
+/// later call returns the same error.
+pub fn write_stdout(args: fmt::Arguments) -> Result<()> {
+    if let Some((_, e)) = STDOUT_FAILED.get() {
+        return Err(e.clone());
+    }
+    let mut stdout = io::stdout().lock();
+    match stdout.write_fmt(args).and_then(|()| stdout.flush()) {
+        Ok(()) => Ok(()),
+        Err(e) => {
+            let error = Error::new(format!("writing to standard output: {}", io_message(&e)));
+            Err(STDOUT_FAILED.get_or_init(|| (e.kind(), error)).1.clone())
+        }
+    }
+}
+
+/// Writes `args` to stderr. Stderr is where errors go, so a failure cannot be reported; it
+/// is remembered instead and makes the exit code 2 (a closed pipe is ignored, as on stdout).
+pub fn write_stderr(args: fmt::Arguments) {
+    let mut stderr = io::stderr().lock();
+    if let Err(e) = stderr.write_fmt(args).and_then(|()| stderr.flush()) {
+        if e.kind() != ErrorKind::BrokenPipe {
+            STDERR_FAILED.store(true, Ordering::Relaxed);
+        }
+    }
+}
+
+/// An I/O error's text without the `(os error N)` suffix: "No space left on device".
+fn io_message(e: &io::Error) -> String {
+    let text = e.to_string();
+    match text.find(" (os error ") {
+        Some(i) => text[..i].to_string(),
+        None => text,
+    }
+}
+
+/// The end of every command: success is exit 0; an error is one line on stderr and exit 2,
+/// except that a closed stdout (the reader went away: `| head -1`) ends quietly with exit 0.
+pub fn exit_code(result: Result<()>) -> ExitCode {
+    let error = match result {
+        Ok(()) => None,
+        Err(e) => match STDOUT_FAILED.get() {
+            Some((ErrorKind::BrokenPipe, closed)) if *closed == e => None,
+            _ => Some(e),
+        },
+    };
+    if let Some(e) = error {
+        errln!("error: {e}");
+        return ExitCode::from(2);
+    }
+    if STDERR_FAILED.load(Ordering::Relaxed) {
+        ExitCode::from(2)
+    } else {
+        ExitCode::SUCCESS
+    }
+}
+
+/// Stdout for a command that writes files: a failed print does not stop the work (the file is
+/// written all the same); the first failure is kept, later lines are skipped, and [`finish`]
+/// returns it once the files are written.
+///
+/// [`finish`]: Report::finish
+#[derive(Default)]
+pub struct Report {
+    failed: Option<Error>,
+}
+
+impl Report {
+    /// Prints `args` unless an earlier print failed.
+    pub fn print(&mut self, args: fmt::Arguments) {
+        if self.failed.is_none() {
+            self.failed = write_stdout(args).err();
+        }
+    }
+
+    /// The first failed print, if any.
+    pub fn finish(self) -> Result<()> {
+        self.failed.map_or(Ok(()), Err)
+    }
+}
 
 pub fn parse_number<T: std::str::FromStr>(flag: &str, text: &str) -> Result<T> {
     text.parse().map_err(|_| Error::new(format!("{flag}: '{text}' is not a valid number")))
@@ -73,6 +191,14 @@ fn same_file(output: &Path, meta: &std::fs::Metadata, input: &Path) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn io_errors_read_without_the_os_error_number() {
+        let full = io::Error::from_raw_os_error(28); // ENOSPC
+        assert_eq!(io_message(&full), "No space left on device");
+        let custom = io::Error::other("disk on fire");
+        assert_eq!(io_message(&custom), "disk on fire");
+    }
 
     #[test]
     fn check_output_refuses_inputs_directories_devices_and_links() {

@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use super::{check_output, parse_in_range, parse_number};
+use super::{check_output, parse_in_range, parse_number, Report};
 use pathtracer::accel::{Accel, AccelKind};
 use pathtracer::integrator::{DirectLighting, Integrator};
 use pathtracer::render::{render, RenderConfig};
@@ -61,12 +61,10 @@ pub(super) struct Cli {
 
 pub fn run(args: &[String]) -> Result<()> {
     if args.iter().any(|a| a == "-h" || a == "--help") {
-        println!("{USAGE}");
-        return Ok(());
+        return outln!("{USAGE}");
     }
     if args.iter().any(|a| a == "-V" || a == "--version") {
-        println!("pathtracer {}", env!("CARGO_PKG_VERSION"));
-        return Ok(());
+        return outln!("pathtracer {}", env!("CARGO_PKG_VERSION"));
     }
     let cli = parse_args(args)?;
     if cli.info {
@@ -77,8 +75,7 @@ pub fn run(args: &[String]) -> Result<()> {
 
 fn print_info(cli: &Cli) -> Result<()> {
     let scene = scene::collada::load(&cli.scene)?;
-    print!("{}", scene::info::summary(&scene, cli.config.width, cli.config.height));
-    Ok(())
+    out!("{}", scene::info::summary(&scene, cli.config.width, cli.config.height))
 }
 
 fn render_to_file(cli: &Cli) -> Result<()> {
@@ -92,64 +89,71 @@ fn render_to_file(cli: &Cli) -> Result<()> {
     }
     let config = &cli.config;
     let threads = if config.threads == 0 { available_threads() } else { config.threads };
-    println!("[PathTracer] Input scene file: {}", cli.scene.display());
-    println!("[PathTracer] Rendering using {threads} threads");
+    // The statistics go to stdout through a Report: whether they can be printed (a full disk,
+    // `| head -1`) does not decide whether the image is written. A failed print is reported
+    // after the image is saved.
+    let mut report = Report::default();
+    report.print(format_args!("[PathTracer] Input scene file: {}\n", cli.scene.display()));
+    report.print(format_args!("[PathTracer] Rendering using {threads} threads\n"));
 
     let t0 = Instant::now();
     let scene = scene::collada::load(&cli.scene)?;
-    println!("[PathTracer] Collecting primitives... Done! ({:.4} sec)", t0.elapsed().as_secs_f64());
+    report.print(format_args!(
+        "[PathTracer] Collecting primitives... Done! ({:.4} sec)\n",
+        t0.elapsed().as_secs_f64()
+    ));
     for w in scene.warnings.iter().chain(&lighting_warnings(&scene, config.integrator)) {
-        eprintln!("warning: {}: {w}", cli.scene.display());
+        errln!("warning: {}: {w}", cli.scene.display());
     }
 
     let prims = scene.triangles.len() + scene.spheres.len();
     let accel = Accel::build(&scene, cli.accel);
     match cli.accel {
-        AccelKind::Bvh => println!(
-            "[PathTracer] Building BVH from {prims} primitives... Done! ({:.4} sec)",
+        AccelKind::Bvh => report.print(format_args!(
+            "[PathTracer] Building BVH from {prims} primitives... Done! ({:.4} sec)\n",
             accel.build_time().as_secs_f64()
-        ),
-        AccelKind::BruteForce => {
-            println!("[PathTracer] No BVH (--no-bvh): {prims} primitives tested per ray")
-        }
+        )),
+        AccelKind::BruteForce => report.print(format_args!(
+            "[PathTracer] No BVH (--no-bvh): {prims} primitives tested per ray\n"
+        )),
     }
 
     let out = render(&scene, &accel, config)?;
-    print_render_stats(&out);
+    print_render_stats(&mut report, &out);
 
-    print!("[PathTracer] Saving to file: {}... ", output.display());
+    report.print(format_args!("[PathTracer] Saving to file: {}... ", output.display()));
     pathtracer::film::write_image(&output, out.width, out.height, &out.pixels)?;
-    println!("Done!");
+    report.print(format_args!("Done!\n"));
     if config.adaptive.is_some() {
         let rate = pathtracer::film::rate_image_path(&output);
         pathtracer::film::write_rate_image(&rate, out.width, out.height, &out.samples, config.spp)?;
-        println!("[PathTracer] Sampling rate image: {}", rate.display());
+        report.print(format_args!("[PathTracer] Sampling rate image: {}\n", rate.display()));
     }
-    println!("[PathTracer] Job completed.");
-    Ok(())
+    report.print(format_args!("[PathTracer] Job completed.\n"));
+    report.finish()
 }
 
-fn print_render_stats(out: &pathtracer::render::RenderOutput) {
+fn print_render_stats(report: &mut Report, out: &pathtracer::render::RenderOutput) {
     let s = &out.stats;
     let secs = out.time.as_secs_f64();
     let rays = s.total_rays();
     let per_ray = |n: u64| n as f64 / rays.max(1) as f64;
-    println!("[PathTracer] Rendering... 100%! ({secs:.4}s)");
-    println!(
-        "[PathTracer] BVH traced {rays} rays ({} camera, {} bounce, {} shadow, {} hemisphere).",
+    report.print(format_args!("[PathTracer] Rendering... 100%! ({secs:.4}s)\n"));
+    report.print(format_args!(
+        "[PathTracer] BVH traced {rays} rays ({} camera, {} bounce, {} shadow, {} hemisphere).\n",
         s.camera_rays, s.bounce_rays, s.shadow_rays, s.probe_rays
-    );
-    println!(
-        "[PathTracer] Average speed {:.4} million rays per second.",
+    ));
+    report.print(format_args!(
+        "[PathTracer] Average speed {:.4} million rays per second.\n",
         rays as f64 / secs.max(1e-9) / 1e6
-    );
+    ));
     let prim_tests = s.trace.triangle_tests + s.trace.sphere_tests;
-    println!(
-        "[PathTracer] Averaged {:.6} intersection tests per ray ({:.6} BVH node tests + {:.6} primitive tests).",
+    report.print(format_args!(
+        "[PathTracer] Averaged {:.6} intersection tests per ray ({:.6} BVH node tests + {:.6} primitive tests).\n",
         per_ray(s.trace.node_tests + prim_tests),
         per_ray(s.trace.node_tests),
         per_ray(prim_tests)
-    );
+    ));
 }
 
 pub(super) fn available_threads() -> usize {

@@ -45,6 +45,7 @@ use plotters::element::DashedPathElement;
 use plotters::prelude::*;
 
 use super::peer::{self, Series};
+use crate::cli::Report;
 
 struct Curve {
     name: &'static str,
@@ -114,7 +115,7 @@ fn run_with(args: &[String]) -> Result<(), String> {
             let records = peer::read(path, file_name.as_deref().unwrap_or(""))?;
             for &depth in &depths {
                 if !records.iter().any(|r| r.m == depth) {
-                    eprintln!("note: {}: no record at -m {depth}", path.display());
+                    errln!("note: {}: no record at -m {depth}", path.display());
                 }
             }
             records
@@ -125,6 +126,8 @@ fn run_with(args: &[String]) -> Result<(), String> {
     let accel = Accel::build(&scene, AccelKind::Bvh);
     let name = scene_path.file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned());
 
+    // The summaries go to stdout through a Report: a failed print does not stop the charts.
+    let mut report = Report::default();
     for &depth in &depths {
         let base = RenderConfig {
             width: w,
@@ -141,7 +144,7 @@ fn run_with(args: &[String]) -> Result<(), String> {
             let c = RenderConfig { integrator, spp: ref_spp, seed: 1 << 40, ..base.clone() };
             let (img, out) =
                 convergence::render_image(&scene, &accel, &c).map_err(|e| e.to_string())?;
-            eprintln!(
+            errln!(
                 "-m {depth}: {} reference, {ref_spp} spp: {:.1} s",
                 integrator.name(),
                 out.time.as_secs_f64()
@@ -185,17 +188,23 @@ fn run_with(args: &[String]) -> Result<(), String> {
         let peer_csv = peer_path.as_deref().map(|p| (p, peers.as_slice()));
         std::fs::write(&csv, to_csv(&curves, peer_csv))
             .map_err(|e| format!("{}: {e}", csv.display()))?;
-        print_summary(depth, &scene, &curves, &peers);
-        eprintln!("wrote {} and {}", svg.display(), csv.display());
+        print_summary(&mut report, depth, &scene, &curves, &peers);
+        errln!("wrote {} and {}", svg.display(), csv.display());
     }
-    Ok(())
+    report.finish().map_err(|e| e.to_string())
 }
 
 /// Fits err = c / sqrt(t) to each curve (the Monte Carlo rate) and prints c, how many times
 /// lower the error is than hemisphere sampling's at equal time, and how many times less time it
 /// needs for equal error (the square). Peer series follow, fitted the same way from their own
 /// times (their size, machine and threads may differ from ours).
-fn print_summary(depth: u32, scene: &Scene, curves: &[Curve], peers: &[Series]) {
+fn print_summary(
+    report: &mut Report,
+    depth: u32,
+    scene: &Scene,
+    curves: &[Curve],
+    peers: &[Series],
+) {
     // (spp, seconds, relative error) per point.
     let c_of = |pts: &[(f64, f64, f64)]| {
         let logs: Vec<f64> = pts.iter().map(|p| (p.2 * p.1.sqrt()).ln()).collect();
@@ -214,23 +223,23 @@ fn print_summary(depth: u32, scene: &Scene, curves: &[Curve], peers: &[Series]) 
         }))
         .collect();
     let width = rows.iter().map(|r| r.0.chars().count()).max().unwrap_or(0).max(22);
-    println!("-m {depth} ({} triangles):", scene.triangles.len());
-    println!(
-        "  {:<width$} {:>12} {:>16} {:>18} {:>16}",
+    report.print(format_args!("-m {depth} ({} triangles):\n", scene.triangles.len()));
+    report.print(format_args!(
+        "  {:<width$} {:>12} {:>16} {:>18} {:>16}\n",
         "integrator", "slope(spp)", "err*sqrt(s)", "hemi err / err", "hemi time / time"
-    );
+    ));
     for (name, pts) in rows {
         let k = c_of(&pts);
         let slope = convergence::log_log_slope(&pts.iter().map(|p| (p.0, p.2)).collect::<Vec<_>>())
             .unwrap_or(f64::NAN);
-        println!(
-            "  {:<width$} {:>12.3} {:>16.5} {:>17.2}x {:>15.2}x",
+        report.print(format_args!(
+            "  {:<width$} {:>12.3} {:>16.5} {:>17.2}x {:>15.2}x\n",
             name,
             slope,
             k,
             c_hemi / k,
             (c_hemi / k).powi(2)
-        );
+        ));
     }
 }
 

@@ -24,10 +24,7 @@ pub fn run(args: &[String]) -> Result<()> {
     match args.first().map(String::as_str) {
         Some("accuracy") => accuracy::run(&args[1..]),
         Some("scaling") => scaling::run(&args[1..]),
-        Some("-h" | "--help") | None => {
-            println!("{USAGE}");
-            Ok(())
-        }
+        Some("-h" | "--help") | None => outln!("{USAGE}"),
         Some(other) => bail!("chart: unknown chart '{other}' (expected accuracy or scaling)"),
     }
 }

@@ -43,8 +43,7 @@ fn run_with(args: &[String]) -> Result<(), String> {
         return Err(format!("{input}: no bench lines"));
     }
     draw(&rows, output).map_err(|e| format!("{output}: {e}"))?;
-    println!("wrote {output}");
-    Ok(())
+    outln!("wrote {output}").map_err(|e| e.to_string())
 }
 
 /// The value of `"key":` in a flat JSON object as written by `BenchResult::to_json`.
