@@ -161,12 +161,12 @@ impl Accel {
         &self.wide_nodes
     }
 
-    /// Bytes held by the structure: the wide nodes plus the triangle blocks.
     /// Whether the structure outgrows the caches (over `STREAM_LARGE_BYTES`).
     pub fn is_large(&self) -> bool {
         self.large
     }
 
+    /// Bytes held by the structure: the wide nodes plus the triangle blocks.
     pub fn memory_bytes(&self) -> usize {
         self.wide_nodes.capacity() * std::mem::size_of::<WideNode>() + self.tris.memory_bytes()
     }

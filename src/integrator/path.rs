@@ -133,7 +133,7 @@ pub fn shade_hit(
     let continues = depth + 1 < ctx.max_depth
         || (last && (direct == DirectLighting::Mis || !bsdf::has_smooth_lobe(material)));
     if continues {
-        continue_path(ctx, depth, &v, path, paths, out);
+        continue_path(ctx, &v, path, paths, out);
     }
 }
 
@@ -281,13 +281,12 @@ fn queue_hemisphere_probes(
 /// BSDF-samples the next direction, updates the throughput, and queues the bounce ray.
 fn continue_path(
     ctx: &RenderContext,
-    depth: u32,
     v: &Vertex,
     path: u32,
     paths: &mut PathState,
     out: &mut ShadeOutputs,
 ) {
-    let pi = path as usize;
+    let (pi, depth) = (path as usize, v.depth);
     let sampler = &mut paths.sampler[pi];
     let [u1, u2] = sampler.get_2d(ctx.sampler, depth, Decision::Bsdf, 0, 1);
     // The lobe choice and the roulette share one draw, taken only when either is needed (a
