@@ -29,7 +29,7 @@ pub use stages::{ShadeOutputs, Surface};
 use crate::accel::{Accel, TraceStats};
 use crate::integrator::{Integrator, LightSet};
 use crate::math::{Hit, Vec3};
-use crate::sampler::SamplerKind;
+use crate::sampler::{DrawBatch, SamplerKind};
 use crate::scene::{Camera, Scene};
 
 /// Tile side in pixels.
@@ -160,6 +160,8 @@ pub struct Workspace {
     hits: Vec<Option<Hit>>,
     /// Occlusion answers of the shadow queue.
     blocked: Vec<bool>,
+    /// The random numbers of the current depth's vertices.
+    draws: DrawBatch,
     pixels: PixelStats,
 }
 
@@ -282,7 +284,7 @@ fn trace_sample_batch(
             shadow: &mut ws.shadow,
             probes: &mut ws.probes,
         };
-        stages::shade(ctx, depth, &ws.rays, &ws.hits, &mut ws.paths, queues);
+        stages::shade(ctx, depth, &ws.rays, &ws.hits, &mut ws.paths, &mut ws.draws, queues);
         stats.shadow_rays += ws.shadow.len() as u64;
         stats.probe_rays += ws.probes.len() as u64;
         stages::trace_shadow_rays(

@@ -4,6 +4,7 @@
 use super::super::{PathState, RayQueue, RenderContext, ShadowQueue};
 use crate::accel::SPHERE_BIT;
 use crate::math::{Hit, Ray, Vec3};
+use crate::sampler::DrawBatch;
 use crate::scene::Scene;
 
 /// Where the integrator writes the work it creates.
@@ -47,19 +48,25 @@ impl Surface {
     }
 }
 
+/// Shades every queued ray's hit. The random numbers of all vertices are drawn first, in one
+/// pass (`DrawBatch`), then each vertex reads its own.
 pub fn shade(
     ctx: &RenderContext,
     depth: u32,
     rays: &RayQueue,
     hits: &[Option<Hit>],
     paths: &mut PathState,
+    draws: &mut DrawBatch,
     mut out: ShadeOutputs,
 ) {
-    for ((ray, hit), &path) in rays.rays.iter().zip(hits).zip(&rays.path) {
+    let layout = ctx.integrator.plan_draws(ctx, depth, draws);
+    draws.draw(ctx.sampler, &mut paths.sampler, &rays.path);
+    for (q, ((ray, hit), &path)) in rays.rays.iter().zip(hits).zip(&rays.path).enumerate() {
         match hit {
             Some(hit) => {
                 let surface = Surface::at(ctx.scene, ray, hit);
-                ctx.integrator.shade_hit(ctx, depth, ray, &surface, path, paths, &mut out);
+                let numbers = (&layout, draws.of(q));
+                ctx.integrator.shade_hit(ctx, depth, ray, &surface, path, paths, numbers, &mut out);
             }
             None => ctx.integrator.shade_miss(ctx, depth, ray, path, paths),
         }
