@@ -3,6 +3,7 @@
 //! never trace rays themselves, so every integrator shares the same queues and traversal.
 
 pub mod bsdf;
+pub mod diffuse;
 pub mod lights;
 mod path;
 
@@ -38,6 +39,12 @@ impl Integrator {
             Integrator::Path(DirectLighting::Mis) => LightSet::emissive_geometry(scene),
             _ => LightSet::course(scene),
         }
+    }
+
+    /// Whether vertices on diffuse surfaces go through `diffuse::shade_diffuse`, `LANES` at
+    /// a time, instead of `shade_hit`: light sampling with area lights only.
+    pub fn shades_diffuse_in_lanes(&self, ctx: &RenderContext) -> bool {
+        *self == Integrator::Path(DirectLighting::LightSampling) && diffuse::applies(ctx)
     }
 
     /// Plans the random numbers every vertex reached by a ray of depth `depth` may use.

@@ -35,7 +35,7 @@ pub enum DirectLighting {
 /// Bounces before Russian roulette may end a path: rays of depth 5 and deeper (Mitsuba's
 /// `rr_depth` default). Starting at 3 traced 25% fewer rays but left 22% more noise at
 /// `-m 5` (PERF.md "Whole renders": 12% worse in noise^2 x rays).
-const RR_START_DEPTH: u32 = 5;
+pub(super) const RR_START_DEPTH: u32 = 5;
 
 /// A local shading frame: normal `n`, tangents `t`, `b`.
 struct Frame {
@@ -77,11 +77,11 @@ struct Vertex<'a> {
 pub struct DrawLayout {
     /// The direct-light draws: scene lights in order (`-l` each, 1 per delta light), then the
     /// emitter draws (MIS); or the hemisphere draws (`-H`).
-    light: usize,
-    emitter: usize,
-    bsdf: usize,
+    pub(super) light: usize,
+    pub(super) emitter: usize,
+    pub(super) bsdf: usize,
     /// Lobe choice and roulette, when either can apply at this depth.
-    lobe: Option<usize>,
+    pub(super) lobe: Option<usize>,
 }
 
 /// Plans the decisions a vertex reached by a ray of depth `depth` may take, in the order the

@@ -48,6 +48,8 @@ pub trait SimdF32:
     fn mul_add(self, a: Self, b: Self) -> Self;
     /// `mask ? t : f` per lane.
     fn select(mask: Self, t: Self, f: Self) -> Self;
+    /// Correctly rounded square root per lane (as `f32::sqrt`).
+    fn sqrt(self) -> Self;
     /// Bit `i` set iff lane `i` of the mask is set.
     fn bitmask(self) -> u32;
 
@@ -139,6 +141,10 @@ macro_rules! impl_simd_f32 {
             #[inline(always)]
             fn select(mask: Self, t: Self, f: Self) -> Self {
                 mask.select(t, f)
+            }
+            #[inline(always)]
+            fn sqrt(self) -> Self {
+                $t::sqrt(self)
             }
             #[inline(always)]
             fn bitmask(self) -> u32 {
@@ -252,6 +258,10 @@ impl SimdF32 for F32x16 {
     #[inline(always)]
     fn select(mask: Self, t: Self, f: Self) -> Self {
         F32x16 { lo: mask.lo.select(t.lo, f.lo), hi: mask.hi.select(t.hi, f.hi) }
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        F32x16 { lo: self.lo.sqrt(), hi: self.hi.sqrt() }
     }
     #[inline(always)]
     fn bitmask(self) -> u32 {

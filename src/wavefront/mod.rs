@@ -73,6 +73,8 @@ pub struct RenderContext<'a> {
     pub sampler: SamplerKind,
     /// Packets for coherent queues (see `stages::Coherence`); `false`: single rays only.
     pub packets: bool,
+    /// Diffuse vertices in SIMD lanes where the integrator allows it (`stages::shade`).
+    pub shading_lanes: bool,
     /// Smallest offset for spawned rays: 1e-5 of the scene's bounding-box diagonal.
     pub scene_epsilon: f32,
 }
@@ -106,6 +108,8 @@ pub struct RenderStats {
     pub shadow_rays: u64,
     /// Closest-hit direct-light rays of uniform hemisphere sampling.
     pub probe_rays: u64,
+    /// Path vertices shaded in SIMD lanes (`integrator::diffuse`) rather than one by one.
+    pub lane_vertices: u64,
     pub trace: TraceStats,
 }
 
@@ -115,6 +119,7 @@ impl RenderStats {
         self.bounce_rays += o.bounce_rays;
         self.shadow_rays += o.shadow_rays;
         self.probe_rays += o.probe_rays;
+        self.lane_vertices += o.lane_vertices;
         self.trace.add(&o.trace);
     }
 
@@ -162,6 +167,7 @@ pub struct Workspace {
     blocked: Vec<bool>,
     /// The random numbers of the current depth's vertices.
     draws: DrawBatch,
+    shade: stages::ShadeScratch,
     pixels: PixelStats,
 }
 
@@ -284,7 +290,17 @@ fn trace_sample_batch(
             shadow: &mut ws.shadow,
             probes: &mut ws.probes,
         };
-        stages::shade(ctx, depth, &ws.rays, &ws.hits, &mut ws.paths, &mut ws.draws, queues);
+        let (rays, hits) = (&ws.rays, &ws.hits);
+        stats.lane_vertices += stages::shade(
+            ctx,
+            depth,
+            rays,
+            hits,
+            &mut ws.paths,
+            &mut ws.draws,
+            &mut ws.shade,
+            queues,
+        );
         stats.shadow_rays += ws.shadow.len() as u64;
         stats.probe_rays += ws.probes.len() as u64;
         stages::trace_shadow_rays(

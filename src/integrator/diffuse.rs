@@ -1,0 +1,456 @@
+//! Light-sampling vertices on diffuse surfaces, `LANES` paths at a time.
+//!
+//! The course scenes are diffuse boxes lit by area lights. Shaded one vertex after another
+//! (`path::shade_hit`), such a vertex is a chain of dependent square roots, divisions and
+//! compares, and shading was half of a render's time (PERF.md "Whole renders"). Here the same
+//! arithmetic runs over `LANES` vertices in SIMD lanes: each lane computes, operation for
+//! operation and in the same order, what `path::shade_hit` computes for
+//! `DirectLighting::LightSampling` at a `Material::Diffuse` vertex lit by area lights, so the
+//! images are bit-identical to the scalar path's (tests/lighting.rs), which stays for every
+//! other case. Only the cosine and sine of the BSDF sample's angle are taken lane by lane.
+
+use std::f32::consts::{FRAC_1_PI, TAU};
+
+use super::path::{DrawLayout, RR_START_DEPTH};
+use crate::math::{Ray, Vec3};
+use crate::sampler::DrawBatch;
+use crate::scene::Light;
+use crate::simd::{SimdF32, VFloat};
+use crate::wavefront::{PathState, RenderContext, ShadeOutputs, Surface};
+
+/// Vertices shaded together.
+pub const LANES: usize = 8;
+type V = VFloat<LANES>;
+type Lanes = [f32; LANES];
+
+/// Three coordinates of `LANES` vectors.
+#[derive(Clone, Copy)]
+struct V3 {
+    x: V,
+    y: V,
+    z: V,
+}
+
+impl V3 {
+    #[inline(always)]
+    fn load(a: &[Lanes; 3]) -> V3 {
+        V3 { x: V::load(&a[0]), y: V::load(&a[1]), z: V::load(&a[2]) }
+    }
+    #[inline(always)]
+    fn splat(v: Vec3) -> V3 {
+        V3 { x: V::splat(v.x), y: V::splat(v.y), z: V::splat(v.z) }
+    }
+    #[inline(always)]
+    fn store(self, out: &mut [Lanes; 3]) {
+        self.x.store(&mut out[0]);
+        self.y.store(&mut out[1]);
+        self.z.store(&mut out[2]);
+    }
+    #[inline(always)]
+    fn add(self, o: V3) -> V3 {
+        V3 { x: self.x + o.x, y: self.y + o.y, z: self.z + o.z }
+    }
+    #[inline(always)]
+    fn sub(self, o: V3) -> V3 {
+        V3 { x: self.x - o.x, y: self.y - o.y, z: self.z - o.z }
+    }
+    #[inline(always)]
+    fn mul(self, o: V3) -> V3 {
+        V3 { x: self.x * o.x, y: self.y * o.y, z: self.z * o.z }
+    }
+    #[inline(always)]
+    fn scale(self, s: V) -> V3 {
+        V3 { x: self.x * s, y: self.y * s, z: self.z * s }
+    }
+    #[inline(always)]
+    fn div(self, s: V) -> V3 {
+        V3 { x: self.x / s, y: self.y / s, z: self.z / s }
+    }
+    #[inline(always)]
+    fn dot(self, o: V3) -> V {
+        self.x * o.x + self.y * o.y + self.z * o.z
+    }
+    #[inline(always)]
+    fn select(mask: V, t: V3, f: V3) -> V3 {
+        V3 {
+            x: V::select(mask, t.x, f.x),
+            y: V::select(mask, t.y, f.y),
+            z: V::select(mask, t.z, f.z),
+        }
+    }
+    /// glam's `max_element`: `if a > b { a } else { b }`, folded left.
+    #[inline(always)]
+    fn max_element(self) -> V {
+        max(max(self.x, self.y), self.z)
+    }
+    /// A mask of the lanes whose three coordinates are finite.
+    #[inline(always)]
+    fn is_finite(self) -> V {
+        let inf = V::splat(f32::INFINITY);
+        self.x.abs().simd_lt(inf) & self.y.abs().simd_lt(inf) & self.z.abs().simd_lt(inf)
+    }
+    /// Coordinates in the frame (t, b, n), as `Frame::to_local`.
+    #[inline(always)]
+    fn to_local(self, f: &Frame) -> V3 {
+        V3 { x: self.dot(f.t), y: self.dot(f.b), z: self.dot(f.n) }
+    }
+}
+
+/// `if a > b { a } else { b }` per lane.
+#[inline(always)]
+fn max(a: V, b: V) -> V {
+    V::select(b.simd_lt(a), a, b)
+}
+
+/// `f32::min(a, b)` for lanes that are not NaN.
+#[inline(always)]
+fn min(a: V, b: V) -> V {
+    V::select(a.simd_lt(b), a, b)
+}
+
+#[inline(always)]
+fn gt(a: V, b: V) -> V {
+    b.simd_lt(a)
+}
+
+/// `-x`, exactly (also for zeros).
+#[inline(always)]
+fn neg(x: V) -> V {
+    V::splat(-1.0) * x
+}
+
+/// The shading frame of `math::orthonormal_basis`, lane by lane.
+struct Frame {
+    t: V3,
+    b: V3,
+    n: V3,
+}
+
+impl Frame {
+    #[inline(always)]
+    fn new(n: V3) -> Frame {
+        let one = V::splat(1.0);
+        // `1.0f32.copysign(n.z)`: the sign bit of n.z on 1.0.
+        let sign = one | (n.z & V::splat(-0.0));
+        let a = V::splat(-1.0) / (sign + n.z);
+        let b = n.x * n.y * a;
+        let t = V3 { x: one + sign * n.x * n.x * a, y: sign * b, z: neg(sign) * n.x };
+        let bb = V3 { x: b, y: sign + n.y * n.y * a, z: neg(n.y) };
+        Frame { t, b: bb, n }
+    }
+}
+
+/// The spawn-point offset of `RenderContext::ray_epsilon`, per lane.
+#[inline(always)]
+fn ray_epsilon(p: V3, scene_epsilon: f32) -> V {
+    const ULPS: f32 = 8.0 * f32::EPSILON;
+    let largest = max(max(p.x.abs(), p.y.abs()), p.z.abs());
+    max(largest * V::splat(ULPS), V::splat(scene_epsilon))
+}
+
+/// `RenderContext::offset_origin`, per lane.
+#[inline(always)]
+fn offset_origin(p: V3, ng: V3, dir: V3, scene_epsilon: f32) -> V3 {
+    let one = V::splat(1.0);
+    let side = V::select(ng.dot(dir).simd_ge(V::splat(0.0)), one, -one);
+    p.add(ng.scale(side * ray_epsilon(p, scene_epsilon)))
+}
+
+/// Up to `LANES` diffuse vertices, loaded lane by lane.
+#[derive(Default)]
+pub struct DiffuseLanes {
+    pub len: usize,
+    pub path: [u32; LANES],
+    /// Queue index of each vertex's ray (its random numbers in the `DrawBatch`).
+    queue: [usize; LANES],
+    p: [Lanes; 3],
+    ng: [Lanes; 3],
+    ns: [Lanes; 3],
+    dir: [Lanes; 3],
+    throughput: [Lanes; 3],
+    albedo: [Lanes; 3],
+}
+
+fn put(a: &mut [Lanes; 3], l: usize, v: Vec3) {
+    (a[0][l], a[1][l], a[2][l]) = (v.x, v.y, v.z);
+}
+
+fn get(a: &[Lanes; 3], l: usize) -> Vec3 {
+    Vec3::new(a[0][l], a[1][l], a[2][l])
+}
+
+impl DiffuseLanes {
+    pub fn is_full(&self) -> bool {
+        self.len == LANES
+    }
+
+    pub fn push(
+        &mut self,
+        path: u32,
+        queue: usize,
+        ray: &Ray,
+        s: &Surface,
+        throughput: Vec3,
+        albedo: Vec3,
+    ) {
+        let l = self.len;
+        self.path[l] = path;
+        self.queue[l] = queue;
+        put(&mut self.p, l, s.p);
+        put(&mut self.ng, l, s.ng);
+        put(&mut self.ns, l, s.ns);
+        put(&mut self.dir, l, ray.dir);
+        put(&mut self.throughput, l, throughput);
+        put(&mut self.albedo, l, albedo);
+        self.len += 1;
+    }
+
+    /// Fills unused lanes with copies of lane 0, so they compute ordinary numbers.
+    fn pad(&mut self) {
+        for l in self.len..LANES {
+            self.path[l] = self.path[0];
+            self.queue[l] = self.queue[0];
+            for a in [
+                &mut self.p,
+                &mut self.ng,
+                &mut self.ns,
+                &mut self.dir,
+                &mut self.throughput,
+                &mut self.albedo,
+            ] {
+                for c in a.iter_mut() {
+                    c[l] = c[0];
+                }
+            }
+        }
+    }
+
+    /// Lanes `0..len` as a bit mask.
+    fn used(&self) -> u32 {
+        (1u32 << self.len) - 1
+    }
+}
+
+/// Shadow rays of one light draw, lane by lane; lane `l` is queued iff bit `l` of `valid`.
+#[derive(Default, Clone)]
+pub struct ShadowLanes {
+    pub valid: u32,
+    origin: [Lanes; 3],
+    dir: [Lanes; 3],
+    t_max: Lanes,
+    contribution: [Lanes; 3],
+}
+
+impl ShadowLanes {
+    pub fn ray(&self, l: usize) -> Ray {
+        Ray::segment(get(&self.origin, l), get(&self.dir, l), 0.0, self.t_max[l])
+    }
+    pub fn contribution(&self, l: usize) -> Vec3 {
+        get(&self.contribution, l)
+    }
+}
+
+/// Continuation rays, lane by lane; lane `l` continues iff bit `l` of `valid`.
+#[derive(Default)]
+pub struct BounceLanes {
+    pub valid: u32,
+    origin: [Lanes; 3],
+    dir: [Lanes; 3],
+    throughput: [Lanes; 3],
+    pdf: Lanes,
+}
+
+impl BounceLanes {
+    pub fn ray(&self, l: usize) -> Ray {
+        Ray::new(get(&self.origin, l), get(&self.dir, l))
+    }
+    pub fn throughput(&self, l: usize) -> Vec3 {
+        get(&self.throughput, l)
+    }
+    pub fn pdf(&self, l: usize) -> f32 {
+        self.pdf[l]
+    }
+}
+
+/// What one batch queues: a shadow ray per light draw and lane, and a bounce per lane.
+#[derive(Default)]
+pub struct DiffuseOutputs {
+    pub shadows: Vec<ShadowLanes>,
+    pub bounce: BounceLanes,
+}
+
+/// Whether `shade_diffuse` can shade this integrator's vertices on diffuse surfaces: light
+/// sampling with area lights only.
+pub fn applies(ctx: &RenderContext) -> bool {
+    ctx.lights.scene_lights.iter().all(|l| matches!(l, Light::Area { .. }))
+}
+
+/// Shades the vertices of `lanes` (reached by rays of depth `depth < max_depth`): their shadow
+/// rays and bounces into `out`, in the order the scalar path would queue them.
+pub fn shade_diffuse(
+    ctx: &RenderContext,
+    depth: u32,
+    layout: &DrawLayout,
+    draws: &DrawBatch,
+    lanes: &mut DiffuseLanes,
+    out: &mut DiffuseOutputs,
+) {
+    lanes.pad();
+    let zero = V::splat(0.0);
+    let used = V::from_bitmask(lanes.used());
+    // The vertex: normals turned towards the viewer, and the shading frame.
+    let dir = V3::load(&lanes.dir);
+    let neg_dir = V3 { x: neg(dir.x), y: neg(dir.y), z: neg(dir.z) };
+    let (ng_s, ns_s) = (V3::load(&lanes.ng), V3::load(&lanes.ns));
+    let cos_out = neg(ng_s.dot(dir));
+    let sign = V::select(cos_out.simd_lt(zero), V::splat(-1.0), V::splat(1.0));
+    let ng = ng_s.scale(sign);
+    let ns = ns_s.scale(sign);
+    let ns = V3::select(ns.dot(neg_dir).simd_le(zero), ng, ns);
+    let frame = Frame::new(ns);
+    let wo = neg_dir.to_local(&frame);
+    let p = V3::load(&lanes.p);
+    let throughput = V3::load(&lanes.throughput);
+    let f = V3::load(&lanes.albedo).scale(V::splat(FRAC_1_PI));
+    let number = |slot: usize, c: usize| -> V {
+        let a: Lanes = std::array::from_fn(|l| draws.of(lanes.queue[l])[slot][c]);
+        V::load(&a)
+    };
+
+    out.shadows.clear();
+    let mut slot = layout.light;
+    for light in &ctx.lights.scene_lights {
+        let Light::Area { position, direction, dim_x, dim_y, radiance } = *light else {
+            unreachable!("shade_diffuse runs only with area lights (`applies`)")
+        };
+        let n = ctx.light_samples;
+        let scale = V::splat(1.0 / n as f32);
+        let area = dim_x.cross(dim_y).length();
+        for _ in 0..n {
+            let (u0, u1) = (number(slot, 0), number(slot, 1));
+            slot += 1;
+            // `lights::sample_scene_light` for an area light.
+            let half = V::splat(0.5);
+            let q = V3::splat(position)
+                .add(V3::splat(dim_x).scale(u0 - half))
+                .add(V3::splat(dim_y).scale(u1 - half));
+            let d = q.sub(p);
+            let dist = d.dot(d).sqrt();
+            let wi = d.div(dist);
+            let cos_l = neg(V3::splat(direction).dot(wi));
+            let area_v = V::splat(area);
+            let sampled = gt(cos_l, zero) & gt(dist, zero) & gt(area_v, zero);
+            let pdf = dist * dist / (area_v * cos_l);
+            // `path::queue_shadow_ray`.
+            let wl = wi.to_local(&frame);
+            let lit = gt(wl.z, zero) & gt(wi.dot(ng), zero);
+            let facing = gt(wo.z, zero) & gt(wl.z, zero);
+            let fl = V3::select(facing, f, V3::splat(Vec3::ZERO));
+            let contribution =
+                throughput.mul(fl).mul(V3::splat(radiance)).scale(wl.z * scale / pdf);
+            let useful = gt(contribution.max_element(), zero) & contribution.is_finite();
+            let origin = offset_origin(p, ng, wi, ctx.scene_epsilon);
+            let q2 = p.add(wi.scale(dist));
+            let dd = q2.sub(origin);
+            let len = dd.dot(dd).sqrt();
+            let ray_dir = dd.div(len);
+            let t_max = len - ray_epsilon(q2, ctx.scene_epsilon) / max(cos_l, V::splat(1e-2));
+            let valid = used & sampled & lit & useful & gt(t_max, zero);
+            let mut s = ShadowLanes { valid: valid.bitmask(), ..Default::default() };
+            origin.store(&mut s.origin);
+            ray_dir.store(&mut s.dir);
+            t_max.store(&mut s.t_max);
+            contribution.store(&mut s.contribution);
+            out.shadows.push(s);
+        }
+    }
+
+    out.bounce.valid = 0;
+    if depth + 1 < ctx.max_depth {
+        continue_diffuse(
+            ctx,
+            depth,
+            layout,
+            p,
+            ng,
+            &frame,
+            wo,
+            throughput,
+            used,
+            &number,
+            &mut out.bounce,
+            lanes,
+        );
+    }
+}
+
+/// `path::continue_path` for a diffuse vertex: a cosine-weighted bounce, with roulette.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn continue_diffuse(
+    ctx: &RenderContext,
+    depth: u32,
+    layout: &DrawLayout,
+    p: V3,
+    ng: V3,
+    frame: &Frame,
+    wo: V3,
+    throughput: V3,
+    used: V,
+    number: &impl Fn(usize, usize) -> V,
+    out: &mut BounceLanes,
+    lanes: &DiffuseLanes,
+) {
+    let zero = V::splat(0.0);
+    let (u1, u2) = (number(layout.bsdf, 0), number(layout.bsdf, 1));
+    // `bsdf::cosine_hemisphere`; the angle's cosine and sine lane by lane, as libm gives them.
+    let r = u1.sqrt();
+    let phi = V::splat(TAU) * u2;
+    let cos_phi: Lanes = std::array::from_fn(|l| phi.lane(l).cos());
+    let sin_phi: Lanes = std::array::from_fn(|l| phi.lane(l).sin());
+    let wi = V3 {
+        x: r * V::load(&cos_phi),
+        y: r * V::load(&sin_phi),
+        z: max(V::splat(1.0) - u1, zero).sqrt(),
+    };
+    let mut valid = used & gt(wo.z, zero) & gt(wi.z, zero);
+    let mut t = throughput.mul(V3::load(&lanes.albedo));
+    if depth + 1 >= RR_START_DEPTH {
+        let roulette = match layout.lobe {
+            Some(k) => number(k, 1),
+            None => zero,
+        };
+        let q = min(t.max_element(), V::splat(1.0));
+        valid = valid & gt(q, zero) & roulette.simd_lt(q);
+        t = t.div(q);
+    }
+    valid = valid & gt(t.max_element(), zero) & t.is_finite();
+    let world = frame.t.scale(wi.x).add(frame.b.scale(wi.y)).add(frame.n.scale(wi.z));
+    let dir = world.scale(V::splat(1.0) / world.dot(world).sqrt());
+    let origin = offset_origin(p, ng, dir, ctx.scene_epsilon);
+    out.valid = valid.bitmask();
+    origin.store(&mut out.origin);
+    dir.store(&mut out.dir);
+    t.store(&mut out.throughput);
+    (wi.z * V::splat(FRAC_1_PI)).store(&mut out.pdf);
+}
+
+/// Queues what lane `l` of a batch produced for path `path`, as the scalar path would have:
+/// its shadow rays in light-draw order, then its bounce.
+pub fn queue_lane(
+    out: &DiffuseOutputs,
+    l: usize,
+    path: u32,
+    paths: &mut PathState,
+    queues: &mut ShadeOutputs,
+) {
+    for s in out.shadows.iter().filter(|s| s.valid & (1 << l) != 0) {
+        queues.shadow.push(s.ray(l), s.contribution(l), path);
+    }
+    let b = &out.bounce;
+    if b.valid & (1 << l) != 0 {
+        paths.throughput[path as usize] = b.throughput(l);
+        paths.bsdf_pdf[path as usize] = b.pdf(l);
+        queues.next.push(b.ray(l), path);
+    }
+}
