@@ -75,6 +75,24 @@ pub trait SimdF32:
     fn max_of_rows(rows: [Self; 8]) -> [f32; 8];
 }
 
+/// Starts loading every cache line of the `T` at `p` (which need not be dereferenceable).
+#[inline(always)]
+pub fn prefetch<T>(p: *const T) {
+    let first = p as usize & !63;
+    let last = (p as usize + std::mem::size_of::<T>() - 1) & !63;
+    for line in (first..=last).step_by(64) {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: a prefetch is a hint that never faults or reads into the program, whatever
+        // the address; `sse` is part of the x86_64 baseline.
+        unsafe {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            _mm_prefetch::<_MM_HINT_T0>(line as *const i8)
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = line;
+    }
+}
+
 /// All bits set: a true mask lane.
 pub const TRUE: f32 = f32::from_bits(!0);
 
