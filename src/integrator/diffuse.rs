@@ -7,12 +7,12 @@
 //! operation and in the same order, what `path::shade_hit` computes for
 //! `DirectLighting::LightSampling` at a `Material::Diffuse` vertex lit by area lights, so the
 //! images are bit-identical to the scalar path's (tests/lighting.rs), which stays for every
-//! other case. Only the cosine and sine of the BSDF sample's angle are taken lane by lane.
+//! other case.
 
 use std::f32::consts::{FRAC_1_PI, TAU};
 
 use super::path::{DrawLayout, RR_START_DEPTH};
-use crate::math::{Ray, Vec3};
+use crate::math::{Ray, Vec3, COS_COEFFS, SIN_COEFFS};
 use crate::sampler::DrawBatch;
 use crate::scene::Light;
 use crate::simd::{SimdF32, VFloat};
@@ -138,6 +138,26 @@ impl Frame {
         let bb = V3 { x: b, y: sign + n.y * n.y * a, z: neg(n.y) };
         Frame { t, b: bb, n }
     }
+}
+
+/// `math::sincos_turns` lane by lane: the same operations in the same order.
+#[inline(always)]
+fn sincos_turns(u: V) -> (V, V) {
+    let (zero, one) = (V::splat(0.0), V::splat(1.0));
+    let step = |edge: f32| V::select(u.simd_ge(V::splat(edge)), one, zero);
+    let quadrant = step(0.125) + step(0.375) + step(0.625) + step(0.875);
+    let x = (u - quadrant * V::splat(0.25)) * V::splat(TAU);
+    let z = x * x;
+    let [s1, s2, s3] = SIN_COEFFS.map(V::splat);
+    let s = ((s3 * z + s2) * z + s1) * z * x + x;
+    let [c1, c2, c3] = COS_COEFFS.map(V::splat);
+    let c = ((c3 * z + c2) * z + c1) * z * z - V::splat(0.5) * z + one;
+    // Quadrants 1 and 3 swap sine and cosine; 1 and 2 negate the cosine slot, 2 and 3 the sine.
+    let odd = quadrant.simd_eq(one) | quadrant.simd_eq(V::splat(3.0));
+    let (s, c) = (V::select(odd, c, s), V::select(odd, s, c));
+    let neg_sin = quadrant.simd_eq(V::splat(2.0)) | quadrant.simd_eq(V::splat(3.0));
+    let neg_cos = quadrant.simd_eq(one) | quadrant.simd_eq(V::splat(2.0));
+    (V::select(neg_sin, neg(s), s), V::select(neg_cos, neg(c), c))
 }
 
 /// The spawn-point offset of `RenderContext::ray_epsilon`, per lane.
@@ -403,16 +423,10 @@ fn continue_diffuse(
 ) {
     let zero = V::splat(0.0);
     let (u1, u2) = (number(layout.bsdf, 0), number(layout.bsdf, 1));
-    // `bsdf::cosine_hemisphere`; the angle's cosine and sine lane by lane, as libm gives them.
+    // `bsdf::cosine_hemisphere`.
     let r = u1.sqrt();
-    let phi = V::splat(TAU) * u2;
-    let cos_phi: Lanes = std::array::from_fn(|l| phi.lane(l).cos());
-    let sin_phi: Lanes = std::array::from_fn(|l| phi.lane(l).sin());
-    let wi = V3 {
-        x: r * V::load(&cos_phi),
-        y: r * V::load(&sin_phi),
-        z: max(V::splat(1.0) - u1, zero).sqrt(),
-    };
+    let (sin_phi, cos_phi) = sincos_turns(u2);
+    let wi = V3 { x: r * cos_phi, y: r * sin_phi, z: max(V::splat(1.0) - u1, zero).sqrt() };
     let mut valid = used & gt(wo.z, zero) & gt(wi.z, zero);
     let mut t = throughput.mul(V3::load(&lanes.albedo));
     if depth + 1 >= RR_START_DEPTH {
