@@ -11,7 +11,8 @@
 
 use std::f32::consts::{FRAC_1_PI, TAU};
 
-use super::path::{DrawLayout, RR_START_DEPTH};
+use super::lights::TriangleEmitter;
+use super::path::{DirectLighting, DrawLayout, RR_START_DEPTH};
 use crate::math::{Ray, Vec3, COS_COEFFS, SIN_COEFFS};
 use crate::sampler::DrawBatch;
 use crate::scene::Light;
@@ -65,6 +66,15 @@ impl V3 {
     #[inline(always)]
     fn div(self, s: V) -> V3 {
         V3 { x: self.x / s, y: self.y / s, z: self.z / s }
+    }
+    /// glam's `cross`, in its order of operations.
+    #[inline(always)]
+    fn cross(self, o: V3) -> V3 {
+        V3 {
+            x: self.y * o.z - o.y * self.z,
+            y: self.z * o.x - o.z * self.x,
+            z: self.x * o.y - o.x * self.y,
+        }
     }
     #[inline(always)]
     fn dot(self, o: V3) -> V {
@@ -300,15 +310,45 @@ pub struct DiffuseOutputs {
 }
 
 /// Whether `shade_diffuse` can shade this integrator's vertices on diffuse surfaces: light
-/// sampling with area lights only.
-pub fn applies(ctx: &RenderContext) -> bool {
-    ctx.lights.scene_lights.iter().all(|l| matches!(l, Light::Area { .. }))
+/// sampling with area lights only, or MIS with triangle emitters and no other lights.
+pub fn applies(ctx: &RenderContext, direct: DirectLighting) -> bool {
+    let area_lights = ctx.lights.scene_lights.iter().all(|l| matches!(l, Light::Area { .. }));
+    match direct {
+        DirectLighting::LightSampling => area_lights,
+        DirectLighting::Mis => area_lights && ctx.lights.emitters_are_triangles(),
+        DirectLighting::Hemisphere => false,
+    }
+}
+
+/// A lane vertex as `path::shade_hit` sets it up.
+struct Vertex {
+    p: V3,
+    /// Geometric normal on the viewer's side.
+    ng: V3,
+    frame: Frame,
+    wo: V3,
+    throughput: V3,
+    /// The diffuse BSDF value, albedo / pi.
+    f: V3,
+    /// The lanes that hold vertices.
+    used: V,
+}
+
+/// Light samples of `lights::LightSample`, lane by lane; `sampled` masks the lanes that have one.
+struct LightLanes {
+    wi: V3,
+    dist: V,
+    li: V3,
+    pdf: V,
+    cos_light: V,
+    sampled: V,
 }
 
 /// Shades the vertices of `lanes` (reached by rays of depth `depth < max_depth`): their shadow
 /// rays and bounces into `out`, in the order the scalar path would queue them.
 pub fn shade_diffuse(
     ctx: &RenderContext,
+    direct: DirectLighting,
     depth: u32,
     layout: &DrawLayout,
     draws: &DrawBatch,
@@ -316,9 +356,51 @@ pub fn shade_diffuse(
     out: &mut DiffuseOutputs,
 ) {
     lanes.pad();
+    let v = vertex(lanes);
+    let number = |slot: usize, c: usize| -> V {
+        let a: Lanes = std::array::from_fn(|l| draws.of(lanes.queue[l])[slot][c]);
+        V::load(&a)
+    };
+    out.shadows.clear();
+    let mut slot = layout.light;
+    for light in &ctx.lights.scene_lights {
+        let n = ctx.light_samples;
+        let scale = V::splat(1.0 / n as f32);
+        for _ in 0..n {
+            let ls = sample_area_light(light, v.p, number(slot, 0), number(slot, 1));
+            out.shadows.push(shadow_ray(ctx, &v, &ls, scale));
+            slot += 1;
+        }
+    }
+    if direct == DirectLighting::Mis && ctx.lights.has_emitters() {
+        let n = ctx.light_samples;
+        for k in layout.emitter..layout.bsdf {
+            let ls = sample_triangle_emitter(ctx, v.p, number(k, 0), number(k, 1));
+            // `path::sample_emissive_geometry`: the power heuristic against BSDF sampling.
+            let zero = V::splat(0.0);
+            let wl = ls.wi.to_local(&v.frame);
+            let bsdf_pdf =
+                V::select(gt(v.wo.z, zero) & gt(wl.z, zero), wl.z * V::splat(FRAC_1_PI), zero);
+            let a = V::splat(n as f32) * ls.pdf;
+            let w = V::select(
+                a.simd_eq(zero) & bsdf_pdf.simd_eq(zero),
+                zero,
+                a * a / (a * a + bsdf_pdf * bsdf_pdf),
+            );
+            out.shadows.push(shadow_ray(ctx, &v, &ls, w / V::splat(n as f32)));
+        }
+    }
+    out.bounce.valid = 0;
+    // As in `path::shade_hit`, MIS continues from the last vertex too (the BSDF half).
+    if depth + 1 < ctx.max_depth || direct == DirectLighting::Mis {
+        continue_diffuse(ctx, depth, layout, &v, &number, &mut out.bounce, lanes);
+    }
+}
+
+/// The vertex of `path::shade_hit`: normals turned towards the viewer, the shading frame.
+#[inline(always)]
+fn vertex(lanes: &DiffuseLanes) -> Vertex {
     let zero = V::splat(0.0);
-    let used = V::from_bitmask(lanes.used());
-    // The vertex: normals turned towards the viewer, and the shading frame.
     let dir = V3::load(&lanes.dir);
     let neg_dir = V3 { x: neg(dir.x), y: neg(dir.y), z: neg(dir.z) };
     let (ng_s, ns_s) = (V3::load(&lanes.ng), V3::load(&lanes.ns));
@@ -329,79 +411,117 @@ pub fn shade_diffuse(
     let ns = V3::select(ns.dot(neg_dir).simd_le(zero), ng, ns);
     let frame = Frame::new(ns);
     let wo = neg_dir.to_local(&frame);
-    let p = V3::load(&lanes.p);
-    let throughput = V3::load(&lanes.throughput);
-    let f = V3::load(&lanes.albedo).scale(V::splat(FRAC_1_PI));
-    let number = |slot: usize, c: usize| -> V {
-        let a: Lanes = std::array::from_fn(|l| draws.of(lanes.queue[l])[slot][c]);
-        V::load(&a)
-    };
+    Vertex {
+        p: V3::load(&lanes.p),
+        ng,
+        frame,
+        wo,
+        throughput: V3::load(&lanes.throughput),
+        f: V3::load(&lanes.albedo).scale(V::splat(FRAC_1_PI)),
+        used: V::from_bitmask(lanes.used()),
+    }
+}
 
-    out.shadows.clear();
-    let mut slot = layout.light;
-    for light in &ctx.lights.scene_lights {
-        let Light::Area { position, direction, dim_x, dim_y, radiance } = *light else {
-            unreachable!("shade_diffuse runs only with area lights (`applies`)")
-        };
-        let n = ctx.light_samples;
-        let scale = V::splat(1.0 / n as f32);
-        let area = dim_x.cross(dim_y).length();
-        for _ in 0..n {
-            let (u0, u1) = (number(slot, 0), number(slot, 1));
-            slot += 1;
-            // `lights::sample_scene_light` for an area light.
-            let half = V::splat(0.5);
-            let q = V3::splat(position)
-                .add(V3::splat(dim_x).scale(u0 - half))
-                .add(V3::splat(dim_y).scale(u1 - half));
-            let d = q.sub(p);
-            let dist = d.dot(d).sqrt();
-            let wi = d.div(dist);
-            let cos_l = neg(V3::splat(direction).dot(wi));
-            let area_v = V::splat(area);
-            let sampled = gt(cos_l, zero) & gt(dist, zero) & gt(area_v, zero);
-            let pdf = dist * dist / (area_v * cos_l);
-            // `path::queue_shadow_ray`.
-            let wl = wi.to_local(&frame);
-            let lit = gt(wl.z, zero) & gt(wi.dot(ng), zero);
-            let facing = gt(wo.z, zero) & gt(wl.z, zero);
-            let fl = V3::select(facing, f, V3::splat(Vec3::ZERO));
-            let contribution =
-                throughput.mul(fl).mul(V3::splat(radiance)).scale(wl.z * scale / pdf);
-            let useful = gt(contribution.max_element(), zero) & contribution.is_finite();
-            let origin = offset_origin(p, ng, wi, ctx.scene_epsilon);
-            let q2 = p.add(wi.scale(dist));
-            let dd = q2.sub(origin);
-            let len = dd.dot(dd).sqrt();
-            let ray_dir = dd.div(len);
-            let t_max = len - ray_epsilon(q2, ctx.scene_epsilon) / max(cos_l, V::splat(1e-2));
-            let valid = used & sampled & lit & useful & gt(t_max, zero);
-            let mut s = ShadowLanes { valid: valid.bitmask(), ..Default::default() };
-            origin.store(&mut s.origin);
-            ray_dir.store(&mut s.dir);
-            t_max.store(&mut s.t_max);
-            contribution.store(&mut s.contribution);
-            out.shadows.push(s);
+/// `lights::sample_scene_light` for an area light.
+#[inline(always)]
+fn sample_area_light(light: &Light, p: V3, u0: V, u1: V) -> LightLanes {
+    let Light::Area { position, direction, dim_x, dim_y, radiance } = *light else {
+        unreachable!("shade_diffuse runs only with area lights (`applies`)")
+    };
+    let zero = V::splat(0.0);
+    let half = V::splat(0.5);
+    let q = V3::splat(position)
+        .add(V3::splat(dim_x).scale(u0 - half))
+        .add(V3::splat(dim_y).scale(u1 - half));
+    let d = q.sub(p);
+    let dist = d.dot(d).sqrt();
+    let wi = d.div(dist);
+    let cos_l = neg(V3::splat(direction).dot(wi));
+    let area = V::splat(dim_x.cross(dim_y).length());
+    LightLanes {
+        wi,
+        dist,
+        li: V3::splat(radiance),
+        pdf: dist * dist / (area * cos_l),
+        cos_light: cos_l,
+        sampled: gt(cos_l, zero) & gt(dist, zero) & gt(area, zero),
+    }
+}
+
+/// `LightSet::sample_emitter` for triangle emitters: the pick lane by lane (an alias-table
+/// look-up), the point and its pdf in lanes.
+#[inline(always)]
+fn sample_triangle_emitter(ctx: &RenderContext, p: V3, u0: V, u1: V) -> LightLanes {
+    let mut e = [TriangleEmitter::default(); LANES];
+    let mut u0_rescaled: Lanes = [0.0; LANES];
+    let mut picked = 0u32;
+    for l in 0..LANES {
+        if let Some((t, u)) = ctx.lights.pick_triangle_emitter(ctx.scene, u0.lane(l)) {
+            (e[l], u0_rescaled[l], picked) = (t, u, picked | 1 << l);
         }
     }
-
-    out.bounce.valid = 0;
-    if depth + 1 < ctx.max_depth {
-        continue_diffuse(
-            ctx,
-            depth,
-            layout,
-            p,
-            ng,
-            &frame,
-            wo,
-            throughput,
-            used,
-            &number,
-            &mut out.bounce,
-            lanes,
-        );
+    let gather = |f: fn(&TriangleEmitter) -> Vec3| -> V3 {
+        let mut a = [[0.0; LANES]; 3];
+        for (l, t) in e.iter().enumerate() {
+            put(&mut a, l, f(t));
+        }
+        V3::load(&a)
+    };
+    let (a, b, c) = (gather(|t| t.a), gather(|t| t.b), gather(|t| t.c));
+    let pick_pdf = V::load(&e.map(|t| t.pick_pdf));
+    let area = V::load(&e.map(|t| t.area));
+    // `lights::sample_emitter_point` for a triangle.
+    let zero = V::splat(0.0);
+    let s = V::load(&u0_rescaled).sqrt();
+    let (b1, b2) = (V::splat(1.0) - s, u1 * s);
+    let (ab, ac) = (b.sub(a), c.sub(a));
+    let q = a.add(ab.scale(b1)).add(ac.scale(b2));
+    let nq = normalize_or_y(ab.cross(ac));
+    let d = q.sub(p);
+    let dist = d.dot(d).sqrt();
+    let wi = d.div(dist);
+    let cos_l = neg(nq.dot(wi));
+    LightLanes {
+        wi,
+        dist,
+        li: gather(|t| t.radiance),
+        pdf: pick_pdf * dist * dist / (area * cos_l),
+        cos_light: cos_l,
+        sampled: V::from_bitmask(picked) & gt(cos_l, zero) & gt(dist, zero),
     }
+}
+
+/// glam's `normalize_or(Vec3::Y)`.
+#[inline(always)]
+fn normalize_or_y(v: V3) -> V3 {
+    let rcp = V::splat(1.0) / v.dot(v).sqrt();
+    let ok = rcp.abs().simd_lt(V::splat(f32::INFINITY)) & gt(rcp, V::splat(0.0));
+    V3::select(ok, v.scale(rcp), V3::splat(Vec3::Y))
+}
+
+/// `path::queue_shadow_ray`: the occlusion test for one light sample per lane.
+#[inline(always)]
+fn shadow_ray(ctx: &RenderContext, v: &Vertex, ls: &LightLanes, scale: V) -> ShadowLanes {
+    let zero = V::splat(0.0);
+    let wl = ls.wi.to_local(&v.frame);
+    let lit = gt(wl.z, zero) & gt(ls.wi.dot(v.ng), zero);
+    let facing = gt(v.wo.z, zero) & gt(wl.z, zero);
+    let f = V3::select(facing, v.f, V3::splat(Vec3::ZERO));
+    let contribution = v.throughput.mul(f).mul(ls.li).scale(wl.z * scale / ls.pdf);
+    let useful = gt(contribution.max_element(), zero) & contribution.is_finite();
+    let origin = offset_origin(v.p, v.ng, ls.wi, ctx.scene_epsilon);
+    let q = v.p.add(ls.wi.scale(ls.dist));
+    let d = q.sub(origin);
+    let len = d.dot(d).sqrt();
+    let dir = d.div(len);
+    let t_max = len - ray_epsilon(q, ctx.scene_epsilon) / max(ls.cos_light, V::splat(1e-2));
+    let valid = v.used & ls.sampled & lit & useful & gt(t_max, zero);
+    let mut s = ShadowLanes { valid: valid.bitmask(), ..Default::default() };
+    origin.store(&mut s.origin);
+    dir.store(&mut s.dir);
+    t_max.store(&mut s.t_max);
+    contribution.store(&mut s.contribution);
+    s
 }
 
 /// `path::continue_path` for a diffuse vertex: a cosine-weighted bounce, with roulette.
@@ -411,16 +531,12 @@ fn continue_diffuse(
     ctx: &RenderContext,
     depth: u32,
     layout: &DrawLayout,
-    p: V3,
-    ng: V3,
-    frame: &Frame,
-    wo: V3,
-    throughput: V3,
-    used: V,
+    v: &Vertex,
     number: &impl Fn(usize, usize) -> V,
     out: &mut BounceLanes,
     lanes: &DiffuseLanes,
 ) {
+    let (p, ng, frame, wo, throughput, used) = (v.p, v.ng, &v.frame, v.wo, v.throughput, v.used);
     let zero = V::splat(0.0);
     let (u1, u2) = (number(layout.bsdf, 0), number(layout.bsdf, 1));
     // `bsdf::cosine_hemisphere`.

@@ -42,9 +42,20 @@ impl Integrator {
     }
 
     /// Whether vertices on diffuse surfaces go through `diffuse::shade_diffuse`, `LANES` at
-    /// a time, instead of `shade_hit`: light sampling with area lights only.
+    /// a time, instead of `shade_hit` (see `diffuse::applies`).
     pub fn shades_diffuse_in_lanes(&self, ctx: &RenderContext) -> bool {
-        *self == Integrator::Path(DirectLighting::LightSampling) && diffuse::applies(ctx)
+        match *self {
+            Integrator::Path(direct) => diffuse::applies(ctx, direct),
+            Integrator::Normals => false,
+        }
+    }
+
+    /// The estimator of direct light, for integrators that have one.
+    pub fn direct_lighting(&self) -> Option<DirectLighting> {
+        match *self {
+            Integrator::Path(direct) => Some(direct),
+            Integrator::Normals => None,
+        }
     }
 
     /// Plans the random numbers every vertex reached by a ray of depth `depth` may use.

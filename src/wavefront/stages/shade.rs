@@ -93,9 +93,10 @@ pub fn shade(
             scratch.surfaces.push(surface);
         }
         in_lanes += scratch.lanes.len as u64;
-        if scratch.lanes.len > 0 {
+        if let (true, Some(direct)) = (scratch.lanes.len > 0, ctx.integrator.direct_lighting()) {
             diffuse::shade_diffuse(
                 ctx,
+                direct,
                 depth,
                 &layout,
                 draws,
