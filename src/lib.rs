@@ -13,6 +13,7 @@
 
 pub mod accel;
 pub mod bench;
+pub mod bvh_preview;
 pub mod convergence;
 pub mod error;
 pub mod film;

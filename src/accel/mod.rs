@@ -6,6 +6,7 @@
 //! structure is the wide nodes plus the triangle blocks. The course scenes hold at most a handful of analytic
 //! spheres, so they are a short list tested after the triangles rather than BVH primitives.
 
+mod binary_node;
 pub mod build;
 mod hugepage;
 mod leaf;
@@ -26,6 +27,7 @@ use crate::math::{Aabb, Hit, Ray};
 use crate::scene::{Scene, Sphere};
 use crate::simd::{LaneWidth, Lanes, VFloat};
 
+pub use binary_node::{binary_node, BinaryNode};
 pub use build::BuildParams;
 pub use node::BvhNode;
 pub use packet::RayPacket;
