@@ -365,6 +365,15 @@ mod tests {
     }
 
     #[test]
+    fn bvh_node_renders_normals() {
+        let cli = parse_args(&args("--bvh-node LR x.dae")).unwrap();
+        assert_eq!(cli.bvh_node.as_deref(), Some("LR"));
+        assert_eq!(cli.config.integrator, Integrator::Normals);
+        let cli = parse_args(&args("--shading normals --bvh-node root x.dae")).unwrap();
+        assert_eq!(cli.bvh_node.as_deref(), Some("root"));
+    }
+
+    #[test]
     fn adaptive_flag_takes_two_values() {
         let cli = parse_args(&args("-a 64 0.05 x.dae")).unwrap();
         assert_eq!(cli.config.adaptive, Some((64, 0.05)));
@@ -388,6 +397,9 @@ mod tests {
             ("-s 4", "no scene file"),
             ("--shading foo x.dae", "unknown integrator"),
             ("-H --shading mis x.dae", "conflicts"),
+            ("--bvh-node L --shading light x.dae", "conflicts"),
+            ("--bvh-node L -H x.dae", "conflicts"),
+            ("x.dae --bvh-node", "needs a value"),
         ] {
             let err = parse_args(&args(a)).unwrap_err().to_string();
             assert!(err.contains(want), "{a}: got '{err}', want '{want}'");
