@@ -59,13 +59,19 @@ impl DrawBatch {
                 }
             }
             SamplerKind::Sobol => {
-                self.keys.clear();
-                self.indices.clear();
-                for &p in order {
+                let stride = self.slots.len();
+                let total = order.len() * stride;
+                self.keys.resize(total, 0);
+                self.indices.resize(total, 0);
+                let rows =
+                    self.keys.chunks_exact_mut(stride).zip(self.indices.chunks_exact_mut(stride));
+                for ((keys, indices), &p) in rows.zip(order) {
                     let sampler = &samplers[p as usize];
-                    for (&(_, sub, count), &dimension) in self.slots.iter().zip(&self.dimensions) {
-                        self.keys.push(sampler.pixel_key ^ dimension);
-                        self.indices.push(sampler.sample.wrapping_mul(count).wrapping_add(sub));
+                    for (k, (&(_, sub, count), &dimension)) in
+                        self.slots.iter().zip(&self.dimensions).enumerate()
+                    {
+                        keys[k] = sampler.pixel_key ^ dimension;
+                        indices[k] = sampler.sample.wrapping_mul(count).wrapping_add(sub);
                     }
                 }
                 self.numbers.resize(self.keys.len(), [0.0; 2]);
