@@ -49,6 +49,9 @@ impl DrawBatch {
     /// Draws every planned number for the paths `order` names (queue order) among `samplers`.
     pub fn draw(&mut self, kind: SamplerKind, samplers: &mut [PathSampler], order: &[u32]) {
         self.numbers.clear();
+        if self.slots.is_empty() {
+            return; // Nothing planned (normal shading, or vertices past the last depth).
+        }
         match kind {
             SamplerKind::Independent => {
                 for &p in order {
@@ -123,5 +126,9 @@ mod tests {
             let want = s.get_2d(SamplerKind::Sobol, depth, Decision::LobeAndRoulette, 0, 1);
             assert_eq!(got[lobe], want);
         }
+        // A plan with no slots draws nothing, for any number of paths.
+        batch.plan(depth);
+        batch.draw(SamplerKind::Sobol, &mut samplers, &order);
+        assert!(batch.of(order.len() - 1).is_empty());
     }
 }
