@@ -15,6 +15,7 @@ pub mod accel;
 pub mod bench;
 pub mod convergence;
 pub mod error;
+pub mod farm;
 pub mod film;
 pub mod geometry;
 pub mod integrator;
