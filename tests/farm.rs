@@ -74,6 +74,7 @@ fn crops_and_uneven_sample_ranges_merge_to_the_whole_render() {
         let flags = [FLAGS, extra].concat();
         let want = whole(&dir, &flags);
         let mut parts = Vec::new();
+        let scene = cornell();
         let crops = [
             ["0", "0", "32", "24"],
             ["32", "0", "64", "24"],
@@ -88,7 +89,7 @@ fn crops_and_uneven_sample_ranges_merge_to_the_whole_render() {
                     &flags[..],
                     &["-t", threads, "--crop"],
                     &crop[..],
-                    &["--samples", range, "-f", s(&part), &cornell()],
+                    &["--samples", range, "-f", s(&part), &scene],
                 ]
                 .concat();
                 ok(&args);
@@ -200,8 +201,8 @@ fn bad_and_mismatched_parts_are_one_line_errors_and_write_nothing() {
 
     let out = dir.join("out.png");
     for (parts, want) in [
-        (vec![&a], "no part holds samples 0..8 of pixel (0, 32)"),
-        (vec![&a, &b, &top_half], "both hold samples 0..8 of pixels (0, 0)-(64, 24)"),
+        (vec![&a], "no part holds samples 0..8 of pixel (0, 16)"),
+        (vec![&a, &b, &top_half], "top.ptpart both hold samples 0..8 of pixels (0, 0)-(64, 16)"),
         (vec![&a, &b_seed], "other flags"),
         (vec![&a, &b_scene], "another scene"),
         (vec![&a, &b_version], "0.0.0-old"),
@@ -217,10 +218,11 @@ fn bad_and_mismatched_parts_are_one_line_errors_and_write_nothing() {
         assert!(!out.exists(), "{want}: an output was written");
     }
     assert_one_line_error(&pathtracer(&["merge", s(&a), s(&b)]), "no output");
-    assert_one_line_error(
-        &pathtracer(&["merge", s(&a), s(&b), "-f", s(&a)]),
-        "same file as the input",
-    );
+    assert_one_line_error(&pathtracer(&["merge", s(&a), s(&b), "-f", s(&a)]), ".png or .exr");
+    let linked = dir.join("linked.png");
+    std::fs::hard_link(&a, &linked).unwrap();
+    let args = ["merge", s(&linked), s(&b), "-f", s(&linked)];
+    assert_one_line_error(&pathtracer(&args), "same file as the input");
     assert_one_line_error(&pathtracer(&["part-info", s(&damaged)]), "checksum");
     let info = pathtracer(&["part-info", s(&a)]);
     assert!(String::from_utf8_lossy(&info.stdout).contains("\"samples\": [0, 8]"));

@@ -150,7 +150,7 @@ fn check_gaps(parts: &[(PathBuf, PartFile)], width: u32, spp: u32, covered: &[u3
     }
     let end = held.iter().map(|r| r.start).find(|&s| s > next).unwrap_or(spp);
     bail!(
-        "merge: no part holds samples {next}..{end} of pixel ({x}, {y}) (-s {spp}; {} parts given)",
+        "merge: no part holds samples {next}..{end} of pixel ({x}, {y}) (-s {spp}; part files given: {})",
         parts.len()
     )
 }
