@@ -30,7 +30,7 @@ pub fn plan_part(width: u32, height: u32, spp: u32, k: u32, n: u32) -> Result<Pa
         bail!("--part {k}/{n}: expected K/N with 0 <= K < N");
     }
     let rows = height.div_ceil(TILE);
-    let Some(bands) = (1..=n.min(rows)).rev().find(|b| n % b == 0 && n / b <= spp) else {
+    let Some(bands) = (1..=n.min(rows)).rev().find(|&b| n.is_multiple_of(b) && n / b <= spp) else {
         bail!(
             "--part {k}/{n}: a {width}x{height} image at -s {spp} cannot be cut into {n} parts \
              ({rows} bands of {TILE}-pixel rows times at most {spp} sample ranges, with N = bands x ranges)"

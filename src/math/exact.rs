@@ -32,8 +32,7 @@ impl ExactRgb {
     /// Adds one sample.
     #[inline]
     pub fn add(&mut self, rgb: [f32; 3]) {
-        for c in 0..3 {
-            let v = rgb[c];
+        for (c, &v) in rgb.iter().enumerate() {
             if v.is_finite() {
                 self.fixed[c] = self.fixed[c].wrapping_add(to_fixed(v));
             } else {

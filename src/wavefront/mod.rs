@@ -228,7 +228,7 @@ pub fn render_tile(
         trace_sample_batch(ctx, tile, first, batch, ws, stats);
         first += batch;
         if let Some((every, tolerance)) = ctx.adaptive {
-            if first % every == 0 {
+            if first.is_multiple_of(every) {
                 retire_converged_pixels(&mut ws.pixels, tolerance);
                 if !ws.pixels.active.contains(&true) {
                     break;
