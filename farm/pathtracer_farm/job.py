@@ -279,11 +279,11 @@ def report_retries(client, job, frames):
         return
     for _, msg in events:
         if isinstance(msg, dict) and msg.get("job") == job:
-            starts.setdefault(msg["part"], []).append(msg["worker"])
+            starts.setdefault((msg["scene"], msg["part"]), []).append(msg["worker"])
     n = frames[0].n
-    for k, workers in sorted(starts.items()):
+    for (scene, k), workers in sorted(starts.items()):
         if len(workers) > 1:
-            say(f"part {k}/{n} retried: started {len(workers)} times (on {', '.join(workers)})")
+            say(f"part {k}/{n} of {scene} retried: started {len(workers)} times (on {', '.join(workers)})")
 
 
 class Progress:

@@ -34,20 +34,20 @@ def scene_bytes(data):
     return data
 
 
-def _log_start(job, k):
+def _log_start(job, scene, k):
     """Tells the client a part started (it counts starts to report retries)."""
     try:
         from distributed import get_worker
 
         worker = get_worker()
-        worker.log_event("pathtracer-farm", {"job": job, "part": k, "worker": worker.address})
+        worker.log_event("pathtracer-farm", {"job": job, "scene": scene, "part": k, "worker": worker.address})
     except (ImportError, ValueError):
         pass  # not inside a Dask worker (tests call this directly)
 
 
 def render_part(job, binary, scene_name, scene_data, flags, k, n):
     """Renders part ``k`` of ``n``; returns (part file bytes, seconds the renderer ran)."""
-    _log_start(job, k)
+    _log_start(job, scene_name, k)
     scene = _scene_file(scene_name, scene_data)
     with tempfile.TemporaryDirectory(prefix="pathtracer-farm-part-") as tmp:
         out = os.path.join(tmp, "part.ptpart")
