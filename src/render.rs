@@ -224,7 +224,8 @@ fn check_range_and_crop(config: &RenderConfig) -> crate::Result<(Range<u32>, Rec
     }
     if config.adaptive.is_some() && samples != (0..config.spp) {
         crate::bail!(
-            "samples {}..{}: adaptive sampling (-a) decides per pixel how many samples to take,              so it cannot render a range of them (split the image, not the samples)",
+            "samples {}..{}: adaptive sampling (-a) decides per pixel how many samples to take, \
+             so it cannot render a range of them (split the image, not the samples)",
             samples.start,
             samples.end
         );
@@ -295,5 +296,36 @@ fn report_progress(done: &AtomicUsize, total: usize, start: Instant) {
     }
     if printed {
         let _ = write!(std::io::stderr(), "\r\x1b[2K");
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sample_ranges_and_crops_are_checked() {
+        let config = RenderConfig { width: 64, height: 48, spp: 8, ..RenderConfig::default() };
+        let check = |f: &dyn Fn(&mut RenderConfig)| {
+            let mut c = config.clone();
+            f(&mut c);
+            check_range_and_crop(&c).map_err(|e| e.to_string())
+        };
+        assert_eq!(check(&|_| {}), Ok((0..8, Rect::of_image(64, 48))));
+        let crop = Rect { x0: 16, y0: 8, x1: 64, y1: 9 };
+        assert_eq!(check(&|c| c.crop = Some(crop)), Ok((0..8, crop)));
+        assert!(check(&|c| c.samples = Some(3..9)).unwrap_err().contains("within 0..8"));
+        assert!(check(&|c| c.samples = Some(3..3)).is_err());
+        let wide = Rect { x0: 0, y0: 0, x1: 65, y1: 1 };
+        assert!(check(&|c| c.crop = Some(wide)).unwrap_err().contains("crop (0, 0)-(65, 1)"));
+        let adaptive_range = |c: &mut RenderConfig| {
+            c.adaptive = Some((4, 0.1));
+            c.samples = Some(0..4);
+        };
+        assert!(check(&adaptive_range).unwrap_err().contains("adaptive"));
+        let tile = Tile { x0: 0, y0: 0, width: 16, height: 16 };
+        assert_eq!(crop.clip(tile), None);
+        let inside = Tile { x0: 16, y0: 0, width: 16, height: 16 };
+        assert_eq!(crop.clip(inside), Some(Tile { x0: 16, y0: 8, width: 16, height: 1 }));
     }
 }
