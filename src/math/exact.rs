@@ -8,8 +8,8 @@
 //! in any order, gives the same sum, and the mean is rounded once at the end.
 //!
 //! The conversion is exact for every f32 of magnitude in [2^-33, 2^40) (about 1.2e-10 to
-//! 1.1e12): their last mantissa bit is worth at least 2^-56. Smaller magnitudes are rounded to
-//! a multiple of 2^-56, larger ones clamped to 2^40; the sum wraps (still associatively) only
+//! 1.1e12): their last mantissa bit is worth at least 2^-56. Smaller magnitudes are truncated
+//! to a multiple of 2^-56, larger ones clamped to 2^40; the sum wraps (still associatively) only
 //! past 2^71, e.g. 2^31 samples of 2^40. Non-finite samples (inf, NaN) are kept aside in an
 //! f32 that only ever adds non-finite values, an associative operation too (inf + inf = inf,
 //! inf - inf = NaN, NaN + x = NaN), and decide the mean when present.
@@ -52,7 +52,7 @@ impl ExactRgb {
     /// The mean of `count` samples (0 for none), rounded once from the exact sum.
     pub fn mean(&self, count: u32) -> [f32; 3] {
         let n = count.max(1) as f64;
-        let scale = (-(FRAC_BITS as f64)).exp2();
+        let scale = 1.0 / SCALE;
         std::array::from_fn(|c| {
             if self.special[c] != 0.0 {
                 self.special[c]
@@ -63,11 +63,20 @@ impl ExactRgb {
     }
 }
 
+/// 2^FRAC_BITS.
+const SCALE: f64 = (1u64 << FRAC_BITS) as f64;
+
 #[inline]
 fn to_fixed(v: f32) -> i128 {
-    let v = v.clamp(-MAX_SAMPLE, MAX_SAMPLE) as f64;
-    // Exact: a power-of-two scale of an f32 fits an f64; `round` only acts below 2^-33.
-    (v * (FRAC_BITS as f64).exp2()).round() as i128
+    // Exact: a power-of-two scale of an f32 fits an f64, and is an integer from 2^-33 up;
+    // below, the cast truncates toward zero. Samples under 128 (nearly all) take the one-
+    // instruction f64 -> i64 conversion; larger ones the (slower) f64 -> i128 one.
+    let x = v.clamp(-MAX_SAMPLE, MAX_SAMPLE) as f64 * SCALE;
+    if x.abs() < 9.0e18 {
+        x as i64 as i128
+    } else {
+        x as i128
+    }
 }
 
 #[cfg(test)]
