@@ -67,8 +67,15 @@ fn image_of(path: &Path, h: &PartHeader) -> Result<(u32, u32, u32)> {
         words.get(i + k)?.parse().ok().filter(|&v| v > 0)
     };
     match (value("-r", 1), value("-r", 2), value("-s", 1)) {
-        (Some(w), Some(h), Some(s)) => Ok((w, h, s)),
-        _ => bail!("{}: part file flags '{}' name no image size and -s", path.display(), h.flags),
+        // The renderer's own limits (`-r`): a damaged header cannot ask for terabytes.
+        (Some(w), Some(h), Some(s)) if w <= 16_384 && h <= 16_384 && w * h <= 1 << 27 => {
+            Ok((w, h, s))
+        }
+        _ => bail!(
+            "{}: part file flags '{}' name no valid image size (-r, at most 16384 a side) and -s",
+            path.display(),
+            h.flags
+        ),
     }
 }
 

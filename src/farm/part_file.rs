@@ -122,12 +122,12 @@ pub fn read_part(path: &Path) -> Result<PartFile> {
         .map_err(|_| Error::new(format!("{}: part file header is not text", path.display())))?;
     let header = parse_header(text).map_err(ctx)?;
     let n = header.crop.pixel_count();
-    if bytes.len() != end + n * PIXEL_BYTES + 8 {
+    let want = n.checked_mul(PIXEL_BYTES).and_then(|b| b.checked_add(end + 8));
+    if want != Some(bytes.len()) {
         bail!(
-            "{}: truncated or damaged part file ({} bytes, expected {} for crop {})",
+            "{}: truncated or damaged part file ({} bytes, not the size of crop {})",
             path.display(),
             bytes.len(),
-            end + n * PIXEL_BYTES + 8,
             header.crop
         );
     }
