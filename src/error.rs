@@ -1,41 +1,111 @@
-//! One error type for the whole crate: a single human-readable line.
+//! One error type for the whole crate: an enum a caller can match on, whose `Display` is a
+//! single human-readable line.
 //!
 //! Every failure a user can cause (bad file, bad flag) ends up here and is printed by the CLI as
-//! `error: <message>` with a non-zero exit. The message names the file and the problem.
+//! `error: <message>` with exit code 2. The message names the file and the problem.
 
 use std::fmt;
+use std::path::{Path, PathBuf};
 
+/// What went wrong. Match on the variant to react (a missing file, a scene to fix, a bad
+/// argument); print it (`Display`) for the one-line message.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Error(String);
+#[non_exhaustive]
+pub enum Error {
+    /// A file could not be read or written; `message` is what failed and the system's reason
+    /// (`cannot read: No such file or directory`).
+    Io { path: PathBuf, message: String },
+    /// A scene file was read but is not a scene we can render (malformed XML, not COLLADA, a
+    /// dangling reference, a non-finite number, too many triangles...). `path` is `None` for
+    /// scene text parsed without a file.
+    Scene { path: Option<PathBuf>, message: String },
+    /// Anything else a caller passed in: an out-of-range option, an image of the wrong size, a
+    /// BVH path off the tree, a failed print.
+    Invalid(String),
+}
 
 pub type Result<T> = std::result::Result<T, Error>;
 
 impl Error {
+    /// An [`Error::Invalid`] with `msg` kept to one line.
     pub fn new(msg: impl Into<String>) -> Self {
-        // Keep it to one line whatever the source text held.
-        Error(msg.into().replace('\n', " "))
+        Error::Invalid(one_line(msg))
     }
 
-    /// Prefix the message with context such as a file name: `"scene.dae: <msg>"`.
+    /// An [`Error::Io`]: `action` on `path` failed (`"cannot read"`, and the reason).
+    pub fn io(path: &Path, action: &str, reason: impl fmt::Display) -> Self {
+        Error::Io { path: path.to_path_buf(), message: one_line(format!("{action}: {reason}")) }
+    }
+
+    /// This error as a problem with the scene at `path` (`None`: scene text without a file);
+    /// an I/O error stays one.
+    pub fn in_scene(self, path: Option<&Path>) -> Self {
+        let path = path.map(Path::to_path_buf);
+        match self {
+            Error::Invalid(message) => Error::Scene { path, message },
+            Error::Scene { path: None, message } => Error::Scene { path, message },
+            other => other,
+        }
+    }
+
+    /// Prefix the message with context such as a flag: `"--csv: <msg>"`. The variant is kept.
     pub fn context(self, ctx: impl fmt::Display) -> Self {
-        Error(format!("{ctx}: {}", self.0))
+        match self {
+            Error::Invalid(m) => Error::Invalid(format!("{ctx}: {m}")),
+            Error::Io { path, message } => Error::Io { path, message: format!("{ctx}: {message}") },
+            Error::Scene { path, message } => {
+                Error::Scene { path, message: format!("{ctx}: {message}") }
+            }
+        }
     }
 
-    pub fn message(&self) -> &str {
-        &self.0
+    /// The one-line message (what `Display` prints).
+    pub fn message(&self) -> String {
+        self.to_string()
     }
+}
+
+fn one_line(msg: impl Into<String>) -> String {
+    // Keep it to one line whatever the source text held.
+    msg.into().replace('\n', " ")
 }
 
 impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(&self.0)
+        match self {
+            Error::Io { path, message } => write!(f, "{}: {message}", path.display()),
+            Error::Scene { path: Some(path), message } => {
+                write!(f, "{}: {message}", path.display())
+            }
+            Error::Scene { path: None, message } | Error::Invalid(message) => f.write_str(message),
+        }
     }
 }
 
 impl std::error::Error for Error {}
 
-/// `bail!("...")` returns early with an [`Error`] built by `format!`.
+/// `bail!("...")` returns early with an [`Error::Invalid`] built by `format!`.
 #[macro_export]
 macro_rules! bail {
     ($($arg:tt)*) => { return Err($crate::Error::new(format!($($arg)*))) };
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_kind_prints_one_line_naming_the_file() {
+        let io = Error::io(Path::new("a.dae"), "cannot read", "No such file\nor directory");
+        assert_eq!(io.to_string(), "a.dae: cannot read: No such file or directory");
+        let scene = Error::new("not valid XML").in_scene(Some(Path::new("b.dae")));
+        assert!(matches!(&scene, Error::Scene { path: Some(p), .. } if p == Path::new("b.dae")));
+        assert_eq!(scene.to_string(), "b.dae: not valid XML");
+        assert!(matches!(io.clone().in_scene(Some(Path::new("x"))), Error::Io { .. }));
+        assert_eq!(Error::new("bad").context("-r").to_string(), "-r: bad");
+        assert_eq!(
+            io.context("--csv").message(),
+            "a.dae: --csv: cannot read: No such file or directory"
+        );
+    }
 }

@@ -47,6 +47,9 @@ pub struct RenderConfig {
     /// Trace coherent queues (camera rays and their shadow rays) in 8-wide packets; `false`
     /// traces every ray alone. Both give bit-identical images (tests/traversal_agree.rs).
     pub packets: bool,
+    /// Shade diffuse light-sampling vertices in SIMD lanes (`integrator::diffuse`); `false`
+    /// shades every vertex alone. Both give bit-identical images (tests/lighting.rs).
+    pub shading_lanes: bool,
 }
 
 impl Default for RenderConfig {
@@ -68,6 +71,7 @@ impl Default for RenderConfig {
             progress: false,
             camera: None,
             packets: true,
+            shading_lanes: true,
         }
     }
 }
@@ -157,6 +161,7 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         seed: config.seed,
         sampler: config.sampler,
         packets: config.packets,
+        shading_lanes: config.shading_lanes,
         scene_epsilon: 1e-5 * bounds.diagonal().max(f32::MIN_POSITIVE),
     };
     let pool = rayon::ThreadPoolBuilder::new()

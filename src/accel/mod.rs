@@ -6,6 +6,7 @@
 //! structure is the wide nodes plus the triangle blocks. The course scenes hold at most a handful of analytic
 //! spheres, so they are a short list tested after the triangles rather than BVH primitives.
 
+mod binary_node;
 pub mod build;
 mod hugepage;
 mod leaf;
@@ -26,6 +27,7 @@ use crate::math::{Aabb, Hit, Ray};
 use crate::scene::{Scene, Sphere};
 use crate::simd::{LaneWidth, Lanes, VFloat};
 
+pub use binary_node::{binary_node, BinaryNode};
 pub use build::BuildParams;
 pub use node::BvhNode;
 pub use packet::RayPacket;
@@ -142,6 +144,41 @@ impl Accel {
         };
         accel.large = accel.memory_bytes() > traverse_single::STREAM_LARGE_BYTES;
         accel
+    }
+
+    /// The BVH over `scene`'s triangles (and its spheres, tested after them).
+    pub fn new(scene: &Scene) -> Accel {
+        Accel::build(scene, AccelKind::Bvh)
+    }
+
+    /// The closest hit along `ray` within [t_min, t_max]: [`intersect`](Accel::intersect)
+    /// without counting the work.
+    pub fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
+        self.intersect(ray, &mut TraceStats::default())
+    }
+
+    /// Whether anything blocks `ray` within [t_min, t_max]: [`occluded`](Accel::occluded)
+    /// without counting the work.
+    pub fn any_hit(&self, ray: &Ray) -> bool {
+        self.occluded(ray, &mut TraceStats::default())
+    }
+
+    /// Closest hits of up to `W` rays traced as one packet (`hits[i]` answers `rays[i]`):
+    /// [`intersect_packet`](Accel::intersect_packet) without counting the work.
+    pub fn closest_hit_packet<const W: usize>(&self, rays: &[Ray], hits: &mut [Option<Hit>])
+    where
+        Lanes<W>: LaneWidth,
+    {
+        self.intersect_packet::<W>(rays, hits, &mut TraceStats::default());
+    }
+
+    /// Occlusion of up to `W` rays traced as one packet (`blocked[i]` answers `rays[i]`):
+    /// [`occluded_packet`](Accel::occluded_packet) without counting the work.
+    pub fn any_hit_packet<const W: usize>(&self, rays: &[Ray], blocked: &mut [bool])
+    where
+        Lanes<W>: LaneWidth,
+    {
+        self.occluded_packet::<W>(rays, blocked, &mut TraceStats::default());
     }
 
     pub fn build_time(&self) -> Duration {

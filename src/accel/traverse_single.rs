@@ -20,6 +20,7 @@ use super::TraceStats;
 use crate::geometry::moller_trumbore::V3;
 use crate::geometry::triangles::{TriangleSoa, LANES};
 use crate::math::{Hit, Ray, Vec3};
+use crate::simd::prefetch;
 use crate::simd::SimdF32;
 
 /// A wide tree is no deeper than the binary tree it came from, and each level pushes at most
@@ -144,19 +145,6 @@ pub(super) fn prefetch_slice<T>(s: &[T]) {
         for line in (a..b + std::mem::size_of::<T>()).step_by(64) {
             prefetch(line as *const u8);
         }
-    }
-}
-
-/// Starts loading every cache line of the `T` at `p` (which need not be dereferenceable).
-#[inline(always)]
-fn prefetch<T>(p: *const T) {
-    use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-    let first = p as usize & !63;
-    let last = (p as usize + std::mem::size_of::<T>() - 1) & !63;
-    for line in (first..=last).step_by(64) {
-        // SAFETY: a prefetch is a hint that never faults or reads into the program, whatever
-        // the address; `sse` is part of the x86_64 baseline.
-        unsafe { _mm_prefetch::<_MM_HINT_T0>(line as *const i8) };
     }
 }
 

@@ -4,11 +4,11 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use super::{check_output, parse_in_range, parse_number, Report};
-use pathtracer::accel::{Accel, AccelKind};
+use pathtracer::accel::{binary_node, Accel, AccelKind, BinaryNode, BuildParams};
 use pathtracer::integrator::{DirectLighting, Integrator};
 use pathtracer::render::{render, Rect, RenderConfig};
 use pathtracer::sampler::SamplerKind;
-use pathtracer::{bail, scene, Error, Result};
+use pathtracer::{bail, bvh_preview, scene, Error, Result};
 
 const USAGE: &str = "\
 Usage: pathtracer [OPTIONS] SCENE.dae
@@ -42,6 +42,9 @@ Our options:
   --sampler KIND      sobol: Owen-scrambled Sobol points per decision (default);
                       independent: independent uniform numbers
   --no-bvh            test every primitive for every ray (slow; for small scenes)
+  --bvh-node PATH     normal shading with one node of the binary BVH tinted and its box
+                      outlined; PATH is L/R steps from the root (LLR), or root; prints the
+                      node's primitive count and SAH cost
   --info              print what the scene holds and exit
   --quiet             no progress line
 
@@ -66,6 +69,8 @@ pub(super) struct Cli {
     part: Option<(u32, u32)>,
     pub accel: AccelKind,
     pub config: RenderConfig,
+    /// `--bvh-node PATH`: the binary BVH node to preview.
+    pub bvh_node: Option<String>,
 }
 
 pub fn run(args: &[String]) -> Result<()> {
@@ -115,6 +120,17 @@ fn render_to_file(cli: &Cli) -> Result<()> {
         errln!("warning: {}: {w}", cli.scene.display());
     }
 
+    // The previewed node is found before the render, so a path off the tree fails at once.
+    let node = cli.bvh_node.as_deref().map(|path| preview_node(&scene, path)).transpose()?;
+    if let Some(n) = &node {
+        report.print(format_args!(
+            "[PathTracer] BVH node {}: {} primitives, SAH cost {:.4}\n",
+            n.path,
+            n.prims.len(),
+            n.sah_cost
+        ));
+    }
+
     let prims = scene.triangles.len() + scene.spheres.len();
     let accel = Accel::build(&scene, cli.accel);
     match cli.accel {
@@ -127,7 +143,11 @@ fn render_to_file(cli: &Cli) -> Result<()> {
         )),
     }
 
-    let out = render(&scene, &accel, config)?;
+    let mut out = render(&scene, &accel, config)?;
+    if let Some(n) = &node {
+        let camera = bvh_preview::camera_for(&scene, config);
+        bvh_preview::mark_node(&mut out.pixels, &camera, &accel, n);
+    }
     print_render_stats(&mut report, &out.stats, out.time);
     if is_part(cli) {
         report.print(format_args!("[PathTracer] Saving part to file: {}... ", output.display()));
@@ -146,6 +166,10 @@ fn render_to_file(cli: &Cli) -> Result<()> {
     }
     report.print(format_args!("[PathTracer] Job completed.\n"));
     report.finish()
+}
+
+fn preview_node(scene: &scene::Scene, path: &str) -> Result<BinaryNode> {
+    binary_node(scene, path, BuildParams::default()).map_err(|e| e.context("--bvh-node"))
 }
 
 pub(super) fn print_render_stats(
@@ -220,6 +244,7 @@ pub(super) fn parse_args(args: &[String]) -> Result<Cli> {
         hemisphere: false,
         part: None,
         accel: AccelKind::Bvh,
+        bvh_node: None,
         config: RenderConfig {
             threads: 0,
             progress: true,
@@ -228,6 +253,7 @@ pub(super) fn parse_args(args: &[String]) -> Result<Cli> {
         },
     };
     let mut scene = None;
+    let mut shading_given = false;
     let mut it = args.iter().map(String::as_str);
     while let Some(arg) = it.next() {
         let mut value =
@@ -256,7 +282,11 @@ pub(super) fn parse_args(args: &[String]) -> Result<Cli> {
                 cli.config.adaptive = Some((batch, tol));
             }
             "--seed" => cli.config.seed = parse_number("--seed", value("--seed")?)?,
-            "--shading" => cli.config.integrator = parse_integrator(value("--shading")?)?,
+            "--shading" => {
+                cli.config.integrator = parse_integrator(value("--shading")?)?;
+                shading_given = true;
+            }
+            "--bvh-node" => cli.bvh_node = Some(value("--bvh-node")?.to_string()),
             "--sampler" => {
                 let name = value("--sampler")?;
                 cli.config.sampler = SamplerKind::parse(name).ok_or_else(|| {
@@ -296,6 +326,18 @@ pub(super) fn parse_args(args: &[String]) -> Result<Cli> {
             bail!("-H conflicts with --shading {}", cli.config.integrator.name());
         }
         cli.config.integrator = Integrator::Path(DirectLighting::Hemisphere);
+    }
+    if cli.bvh_node.is_some() {
+        if cli.config.integrator != Integrator::Normals && (shading_given || cli.hemisphere) {
+            bail!(
+                "--bvh-node shows normal shading; it conflicts with --shading {}",
+                cli.config.integrator.name()
+            );
+        }
+        cli.config.integrator = Integrator::Normals;
+    }
+    if cli.bvh_node.is_some() && is_part(&cli) {
+        bail!("--bvh-node previews a whole image; it cannot render a part (--part, --samples, --crop)");
     }
     resolve_part(&mut cli)?;
     Ok(cli)
@@ -436,6 +478,15 @@ mod tests {
     }
 
     #[test]
+    fn bvh_node_renders_normals() {
+        let cli = parse_args(&args("--bvh-node LR x.dae")).unwrap();
+        assert_eq!(cli.bvh_node.as_deref(), Some("LR"));
+        assert_eq!(cli.config.integrator, Integrator::Normals);
+        let cli = parse_args(&args("--shading normals --bvh-node root x.dae")).unwrap();
+        assert_eq!(cli.bvh_node.as_deref(), Some("root"));
+    }
+
+    #[test]
     fn adaptive_flag_takes_two_values() {
         let cli = parse_args(&args("-a 64 0.05 x.dae")).unwrap();
         assert_eq!(cli.config.adaptive, Some((64, 0.05)));
@@ -469,6 +520,9 @@ mod tests {
             ("-s 2 -r 64 48 --part 0/5 x.dae", "cannot be cut"),
             ("-r 64 48 --crop 0 0 65 1 x.dae", "--crop 0 0 65 1"),
             ("--crop 0 0 1 x.dae", "not a valid number"),
+            ("--bvh-node L --shading light x.dae", "conflicts"),
+            ("--bvh-node L -H x.dae", "conflicts"),
+            ("x.dae --bvh-node", "needs a value"),
         ] {
             let err = parse_args(&args(a)).unwrap_err().to_string();
             assert!(err.contains(want), "{a}: got '{err}', want '{want}'");

@@ -8,7 +8,8 @@
 //! flags -r 64 48 -s 8 -l 1 ...           `image_flags`: what decides the pixels
 //! crop 0 16 64 32                        the pixels x0 y0 x1 y1 (ends excluded)
 //! samples 0 8                            the samples A B of each pixel (B excluded)
-//! stats 3072 0 3072 0 6144 81920 9000 0  camera bounce shadow probe rays node tri sphere
+//! stats 3072 0 3072 0 0 6144 81920 9000 0   camera bounce shadow probe lane-vertices, then
+//!                                        traced rays, node, triangle and sphere tests
 //! seconds 0.0123                         rendering time
 //! end
 //! ```
@@ -84,7 +85,7 @@ fn header_text(h: &PartHeader) -> String {
     let (s, t, c) = (&h.stats, &h.stats.trace, &h.crop);
     format!(
         "{FORMAT}\nrenderer {}\nscene {}\nscene-fnv1a64 {:016x}\nflags {}\ncrop {} {} {} {}\n\
-         samples {} {}\nstats {} {} {} {} {} {} {} {}\nseconds {}\nend\n",
+         samples {} {}\nstats {} {} {} {} {} {} {} {} {}\nseconds {}\nend\n",
         h.renderer,
         h.scene.replace('\n', " "),
         h.scene_hash,
@@ -99,6 +100,7 @@ fn header_text(h: &PartHeader) -> String {
         s.bounce_rays,
         s.shadow_rays,
         s.probe_rays,
+        s.lane_vertices,
         t.rays,
         t.node_tests,
         t.triangle_tests,
@@ -164,19 +166,20 @@ fn parse_header(text: &str) -> Result<PartHeader> {
     let flags = field("flags")?.to_string();
     let c: [u32; 4] = numbers("crop", field("crop")?)?;
     let s: [u32; 2] = numbers("samples", field("samples")?)?;
-    let st: [u64; 8] = numbers("stats", field("stats")?)?;
+    let st: [u64; 9] = numbers("stats", field("stats")?)?;
     let secs: [f64; 1] = numbers("seconds", field("seconds")?)?;
     let crop = Rect { x0: c[0], y0: c[1], x1: c[2], y1: c[3] };
     if crop.x0 >= crop.x1 || crop.y0 >= crop.y1 || s[0] >= s[1] {
         bail!("part file header: empty crop {crop} or samples {}..{}", s[0], s[1]);
     }
     let trace =
-        TraceStats { rays: st[4], node_tests: st[5], triangle_tests: st[6], sphere_tests: st[7] };
+        TraceStats { rays: st[5], node_tests: st[6], triangle_tests: st[7], sphere_tests: st[8] };
     let stats = RenderStats {
         camera_rays: st[0],
         bounce_rays: st[1],
         shadow_rays: st[2],
         probe_rays: st[3],
+        lane_vertices: st[4],
         trace,
     };
     Ok(PartHeader {

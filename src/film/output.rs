@@ -95,8 +95,7 @@ fn save_atomically(
 ) -> Result<()> {
     let name = path.file_name().map_or("out".into(), |n| n.to_string_lossy().into_owned());
     let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
-    let fail =
-        |e: &dyn std::fmt::Display| Error::new(format!("{}: cannot write: {e}", path.display()));
+    let fail = |e: &dyn std::fmt::Display| Error::io(path, "cannot write", e);
     let result = (|| {
         let file = std::fs::File::create(&tmp).map_err(|e| fail(&e))?;
         let mut w = BufWriter::new(file);

@@ -108,8 +108,8 @@ pub fn sample(m: &Material, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
 /// Cosine-weighted direction about +z (pdf cos / pi), by Malley's method.
 pub fn cosine_hemisphere(u1: f32, u2: f32) -> Vec3 {
     let r = u1.sqrt();
-    let phi = TAU * u2;
-    Vec3::new(r * phi.cos(), r * phi.sin(), (1.0 - u1).max(0.0).sqrt())
+    let (sin_phi, cos_phi) = crate::math::sincos_turns(u2);
+    Vec3::new(r * cos_phi, r * sin_phi, (1.0 - u1).max(0.0).sqrt())
 }
 
 /// Uniform direction over the +z hemisphere (pdf 1 / (2 pi)).

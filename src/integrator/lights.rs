@@ -36,6 +36,18 @@ enum Emitter {
     Sphere(u32),
 }
 
+/// An emissive triangle as `sample_emitter` sees it.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct TriangleEmitter {
+    pub a: Vec3,
+    pub b: Vec3,
+    pub c: Vec3,
+    pub radiance: Vec3,
+    /// The probability of picking it, and its area.
+    pub pick_pdf: f32,
+    pub area: f32,
+}
+
 /// The lights of one render.
 #[derive(Debug, Clone, Default)]
 pub struct LightSet {
@@ -159,6 +171,23 @@ impl LightSet {
         }
         let pdf = self.emitter_pick_pdf(scene, e) * dist * dist / (emitter_area(scene, e) * cos_l);
         Some(LightSample { wi, dist, li: emitter_radiance(scene, e), pdf, cos_light: cos_l })
+    }
+
+    /// Whether every emitter is a triangle (`diffuse::shade_diffuse` samples only those).
+    pub fn emitters_are_triangles(&self) -> bool {
+        self.emitters.iter().all(|e| matches!(e, Emitter::Triangle(_)))
+    }
+
+    /// The first half of `sample_emitter` for triangle emitters: the emitter `u0` picks, and
+    /// `u0` rescaled within its share; the same values `sample_emitter` computes.
+    pub fn pick_triangle_emitter(&self, scene: &Scene, u0: f32) -> Option<(TriangleEmitter, f32)> {
+        let (i, u0) = self.emitter_table.sample(u0)?;
+        let e = self.emitters[i];
+        let Emitter::Triangle(t) = e else { return None };
+        let [a, b, c] = scene.triangle(t as usize);
+        let radiance = emitter_radiance(scene, e);
+        let (pick_pdf, area) = (self.emitter_pick_pdf(scene, e), emitter_area(scene, e));
+        Some((TriangleEmitter { a, b, c, radiance, pick_pdf, area }, u0))
     }
 
     /// The solid-angle pdf with which `sample_emitter` would have chosen the point that a ray

@@ -3,13 +3,15 @@
 //! never trace rays themselves, so every integrator shares the same queues and traversal.
 
 pub mod bsdf;
+pub mod diffuse;
 pub mod lights;
 mod path;
 
 pub use lights::LightSet;
-pub use path::DirectLighting;
+pub use path::{DirectLighting, DrawLayout};
 
 use crate::math::{Ray, Vec3};
+use crate::sampler::DrawBatch;
 use crate::wavefront::{PathState, RenderContext, ShadeOutputs, Surface};
 
 /// The closed set of integrators.
@@ -39,6 +41,34 @@ impl Integrator {
         }
     }
 
+    /// Whether vertices on diffuse surfaces go through `diffuse::shade_diffuse`, `LANES` at
+    /// a time, instead of `shade_hit` (see `diffuse::applies`).
+    pub fn shades_diffuse_in_lanes(&self, ctx: &RenderContext) -> bool {
+        match *self {
+            Integrator::Path(direct) => diffuse::applies(ctx, direct),
+            Integrator::Normals => false,
+        }
+    }
+
+    /// The estimator of direct light, for integrators that have one.
+    pub fn direct_lighting(&self) -> Option<DirectLighting> {
+        match *self {
+            Integrator::Path(direct) => Some(direct),
+            Integrator::Normals => None,
+        }
+    }
+
+    /// Plans the random numbers every vertex reached by a ray of depth `depth` may use.
+    pub fn plan_draws(&self, ctx: &RenderContext, depth: u32, batch: &mut DrawBatch) -> DrawLayout {
+        match *self {
+            Integrator::Normals => {
+                batch.plan(depth);
+                DrawLayout::default()
+            }
+            Integrator::Path(direct) => path::plan_draws(direct, ctx, depth, batch),
+        }
+    }
+
     #[allow(clippy::too_many_arguments)]
     pub fn shade_hit(
         &self,
@@ -48,6 +78,7 @@ impl Integrator {
         surface: &Surface,
         path: u32,
         paths: &mut PathState,
+        numbers: (&DrawLayout, &[[f32; 2]]),
         out: &mut ShadeOutputs,
     ) {
         match *self {
@@ -55,7 +86,7 @@ impl Integrator {
                 paths.radiance[path as usize] = 0.5 * surface.ns + Vec3::splat(0.5);
             }
             Integrator::Path(direct) => {
-                path::shade_hit(direct, ctx, depth, ray, surface, path, paths, out)
+                path::shade_hit(direct, ctx, depth, ray, surface, path, paths, numbers, out)
             }
         }
     }

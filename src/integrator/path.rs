@@ -17,7 +17,7 @@
 use super::bsdf::{self, UNIFORM_HEMISPHERE_PDF};
 use super::lights::{sample_scene_light, LightSample};
 use crate::math::{orthonormal_basis, Ray, Vec3};
-use crate::sampler::Decision;
+use crate::sampler::{Decision, DrawBatch};
 use crate::scene::Material;
 use crate::wavefront::{PathState, RenderContext, ShadeOutputs, Surface};
 
@@ -35,7 +35,7 @@ pub enum DirectLighting {
 /// Bounces before Russian roulette may end a path: rays of depth 5 and deeper (Mitsuba's
 /// `rr_depth` default). Starting at 3 traced 25% fewer rays but left 22% more noise at
 /// `-m 5` (PERF.md "Whole renders": 12% worse in noise^2 x rays).
-const RR_START_DEPTH: u32 = 5;
+pub(super) const RR_START_DEPTH: u32 = 5;
 
 /// A local shading frame: normal `n`, tangents `t`, `b`.
 struct Frame {
@@ -66,8 +66,64 @@ struct Vertex<'a> {
     wo: Vec3,
     material: &'a Material,
     throughput: Vec3,
-    /// Depth of the ray that reached this vertex (camera rays: 0); keys the sampler.
+    /// Depth of the ray that reached this vertex (camera rays: 0).
     depth: u32,
+    /// This vertex's random numbers, laid out as `DrawLayout` says.
+    numbers: &'a [[f32; 2]],
+}
+
+/// Where each decision's numbers sit among a vertex's planned draws (`plan_draws`).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct DrawLayout {
+    /// The direct-light draws: scene lights in order (`-l` each, 1 per delta light), then the
+    /// emitter draws (MIS); or the hemisphere draws (`-H`).
+    pub(super) light: usize,
+    pub(super) emitter: usize,
+    pub(super) bsdf: usize,
+    /// Lobe choice and roulette, when either can apply at this depth.
+    pub(super) lobe: Option<usize>,
+}
+
+/// Plans the decisions a vertex reached by a ray of depth `depth` may take, in the order the
+/// shading code reads them.
+pub fn plan_draws(
+    direct: DirectLighting,
+    ctx: &RenderContext,
+    depth: u32,
+    batch: &mut DrawBatch,
+) -> DrawLayout {
+    batch.plan(depth);
+    let mut layout = DrawLayout::default();
+    if depth >= ctx.max_depth {
+        return layout;
+    }
+    let n = ctx.light_samples;
+    layout.light = batch.stride();
+    match direct {
+        DirectLighting::Hemisphere => {
+            batch.add(Decision::Hemisphere, hemisphere_draws(ctx));
+        }
+        DirectLighting::LightSampling | DirectLighting::Mis => {
+            for (li, light) in ctx.lights.scene_lights.iter().enumerate() {
+                batch.add(Decision::SceneLight(li as u32), if light.is_delta() { 1 } else { n });
+            }
+        }
+    }
+    layout.emitter = batch.stride();
+    if direct == DirectLighting::Mis && ctx.lights.has_emitters() {
+        batch.add(Decision::Emitter, n);
+    }
+    layout.bsdf = batch.add(Decision::Bsdf, 1);
+    let any_lobe_choice = ctx.scene.materials.iter().any(bsdf::chooses_lobe);
+    if depth + 1 >= RR_START_DEPTH || any_lobe_choice {
+        layout.lobe = Some(batch.add(Decision::LobeAndRoulette, 1));
+    }
+    layout
+}
+
+/// Uniform hemisphere sampling takes `-l` directions per scene light (at least one light).
+fn hemisphere_draws(ctx: &RenderContext) -> u32 {
+    ctx.scene.lights.len().max(1) as u32 * ctx.light_samples
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -79,8 +135,10 @@ pub fn shade_hit(
     surface: &Surface,
     path: u32,
     paths: &mut PathState,
+    numbers: (&DrawLayout, &[[f32; 2]]),
     out: &mut ShadeOutputs,
 ) {
+    let (layout, numbers) = numbers;
     let pi = path as usize;
     let material = &ctx.scene.materials[surface.material as usize];
     let cos_out = -surface.ng.dot(ray.dir);
@@ -116,13 +174,14 @@ pub fn shade_hit(
         material,
         throughput: paths.throughput[pi],
         depth,
+        numbers,
     };
 
     if bsdf::has_smooth_lobe(material) {
         match direct {
-            DirectLighting::LightSampling => sample_scene_lights(ctx, &v, path, paths, out),
-            DirectLighting::Hemisphere => queue_hemisphere_probes(ctx, &v, path, paths, out),
-            DirectLighting::Mis => sample_emissive_geometry(ctx, &v, path, paths, out),
+            DirectLighting::LightSampling => sample_scene_lights(ctx, &v, layout, path, out),
+            DirectLighting::Hemisphere => queue_hemisphere_probes(ctx, &v, layout, path, out),
+            DirectLighting::Mis => sample_emissive_geometry(ctx, &v, layout, path, out),
         }
     }
 
@@ -133,7 +192,7 @@ pub fn shade_hit(
     let continues = depth + 1 < ctx.max_depth
         || (last && (direct == DirectLighting::Mis || !bsdf::has_smooth_lobe(material)));
     if continues {
-        continue_path(ctx, &v, path, paths, out);
+        continue_path(ctx, &v, layout, path, paths, out);
     }
 }
 
@@ -173,15 +232,14 @@ fn power_heuristic(nf: f32, f: f32, ng: f32, g: f32) -> f32 {
 fn sample_scene_lights(
     ctx: &RenderContext,
     v: &Vertex,
+    layout: &DrawLayout,
     path: u32,
-    paths: &mut PathState,
     out: &mut ShadeOutputs,
 ) {
-    let sampler = &mut paths.sampler[path as usize];
-    for (li, light) in ctx.lights.scene_lights.iter().enumerate() {
+    let mut numbers = v.numbers[layout.light..layout.emitter].iter();
+    for light in &ctx.lights.scene_lights {
         let n = if light.is_delta() { 1 } else { ctx.light_samples };
-        for j in 0..n {
-            let u = sampler.get_2d(ctx.sampler, v.depth, Decision::SceneLight(li as u32), j, n);
+        for &u in numbers.by_ref().take(n as usize) {
             if let Some(ls) = sample_scene_light(light, v.p, v.frame.n, u) {
                 queue_shadow_ray(ctx, v, &ls, 1.0 / n as f32, path, out);
             }
@@ -194,18 +252,16 @@ fn sample_scene_lights(
 fn sample_emissive_geometry(
     ctx: &RenderContext,
     v: &Vertex,
+    layout: &DrawLayout,
     path: u32,
-    paths: &mut PathState,
     out: &mut ShadeOutputs,
 ) {
-    sample_scene_lights(ctx, v, path, paths, out);
+    sample_scene_lights(ctx, v, layout, path, out);
     if !ctx.lights.has_emitters() {
         return;
     }
     let n = ctx.light_samples;
-    let sampler = &mut paths.sampler[path as usize];
-    for j in 0..n {
-        let u = sampler.get_2d(ctx.sampler, v.depth, Decision::Emitter, j, n);
+    for &u in &v.numbers[layout.emitter..layout.bsdf] {
         let Some(ls) = ctx.lights.sample_emitter(ctx.scene, v.p, u) else {
             continue;
         };
@@ -258,14 +314,12 @@ fn queue_shadow_ray(
 fn queue_hemisphere_probes(
     ctx: &RenderContext,
     v: &Vertex,
+    layout: &DrawLayout,
     path: u32,
-    paths: &mut PathState,
     out: &mut ShadeOutputs,
 ) {
-    let n = ctx.scene.lights.len().max(1) as u32 * ctx.light_samples;
-    let sampler = &mut paths.sampler[path as usize];
-    for j in 0..n {
-        let [u1, u2] = sampler.get_2d(ctx.sampler, v.depth, Decision::Hemisphere, j, n);
+    let n = hemisphere_draws(ctx);
+    for &[u1, u2] in &v.numbers[layout.light..layout.emitter] {
         let wi = bsdf::uniform_hemisphere(u1, u2);
         let f = bsdf::eval(v.material, v.wo, wi);
         let weight = v.throughput * f * (wi.z / (UNIFORM_HEMISPHERE_PDF * n as f32));
@@ -282,21 +336,17 @@ fn queue_hemisphere_probes(
 fn continue_path(
     ctx: &RenderContext,
     v: &Vertex,
+    layout: &DrawLayout,
     path: u32,
     paths: &mut PathState,
     out: &mut ShadeOutputs,
 ) {
-    let (pi, depth) = (path as usize, v.depth);
-    let sampler = &mut paths.sampler[pi];
-    let [u1, u2] = sampler.get_2d(ctx.sampler, depth, Decision::Bsdf, 0, 1);
-    // The lobe choice and the roulette share one draw, taken only when either is needed (a
-    // draw costs as much as a few dozen arithmetic operations).
-    let roulette_applies = depth + 1 >= RR_START_DEPTH;
-    let [lobe, roulette] = if roulette_applies || bsdf::chooses_lobe(v.material) {
-        sampler.get_2d(ctx.sampler, depth, Decision::LobeAndRoulette, 0, 1)
-    } else {
-        [0.0, 0.0]
-    };
+    let pi = path as usize;
+    let [u1, u2] = v.numbers[layout.bsdf];
+    // The lobe choice and the roulette share one draw, planned only at depths and in scenes
+    // where either can apply.
+    let roulette_applies = v.depth + 1 >= RR_START_DEPTH;
+    let [lobe, roulette] = layout.lobe.map_or([0.0, 0.0], |k| v.numbers[k]);
     let Some(s) = bsdf::sample(v.material, v.wo, [u1, u2, lobe]) else {
         return;
     };

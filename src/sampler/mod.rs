@@ -6,9 +6,11 @@
 //! Sobol sequence over the pixel's samples (`sobol.rs`), so a pixel's samples stratify each
 //! decision; `Independent` draws everything from one PCG32 stream per pixel sample.
 
+mod batch;
 mod pcg32;
 pub mod sobol;
 
+pub use batch::DrawBatch;
 pub use pcg32::{splitmix64, Pcg32};
 
 /// How a render draws its random numbers (`--sampler`).

@@ -14,9 +14,8 @@ use crate::{bail, Error, Result};
 
 /// Reads and parses a scene file.
 pub fn load(path: &Path) -> Result<Scene> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| Error::new(format!("{}: cannot read: {e}", path.display())))?;
-    parse(&text).map_err(|e| e.context(path.display()))
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, "cannot read", e))?;
+    parse(&text).map_err(|e| e.in_scene(Some(path)))
 }
 
 /// Parses a scene from COLLADA text.

@@ -44,6 +44,20 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// Reads a scene from a COLLADA file. A file that cannot be read is [`Error::Io`]; one
+    /// that is not a scene we can render is [`Error::Scene`].
+    ///
+    /// [`Error::Io`]: crate::Error::Io
+    /// [`Error::Scene`]: crate::Error::Scene
+    pub fn load(path: impl AsRef<std::path::Path>) -> crate::Result<Scene> {
+        collada::load(path.as_ref())
+    }
+
+    /// Parses a scene from COLLADA text; every failure is [`Error::Scene`](crate::Error::Scene).
+    pub fn parse(text: &str) -> crate::Result<Scene> {
+        collada::parse(text).map_err(|e| e.in_scene(None))
+    }
+
     /// Bounding box of all geometry (meshes and spheres, not lights), as the camera frames it.
     pub fn bounds(&self) -> Aabb {
         let tris = self

@@ -48,6 +48,8 @@ pub trait SimdF32:
     fn mul_add(self, a: Self, b: Self) -> Self;
     /// `mask ? t : f` per lane.
     fn select(mask: Self, t: Self, f: Self) -> Self;
+    /// Correctly rounded square root per lane (as `f32::sqrt`).
+    fn sqrt(self) -> Self;
     /// Bit `i` set iff lane `i` of the mask is set.
     fn bitmask(self) -> u32;
 
@@ -71,6 +73,24 @@ pub trait SimdF32:
 
     /// The largest lane of each of 8 vectors (`fast_max` semantics), as `min_of_rows`.
     fn max_of_rows(rows: [Self; 8]) -> [f32; 8];
+}
+
+/// Starts loading every cache line of the `T` at `p` (which need not be dereferenceable).
+#[inline(always)]
+pub fn prefetch<T>(p: *const T) {
+    let first = p as usize & !63;
+    let last = (p as usize + std::mem::size_of::<T>() - 1) & !63;
+    for line in (first..=last).step_by(64) {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: a prefetch is a hint that never faults or reads into the program, whatever
+        // the address; `sse` is part of the x86_64 baseline.
+        unsafe {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            _mm_prefetch::<_MM_HINT_T0>(line as *const i8)
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = line;
+    }
 }
 
 /// All bits set: a true mask lane.
@@ -139,6 +159,10 @@ macro_rules! impl_simd_f32 {
             #[inline(always)]
             fn select(mask: Self, t: Self, f: Self) -> Self {
                 mask.select(t, f)
+            }
+            #[inline(always)]
+            fn sqrt(self) -> Self {
+                $t::sqrt(self)
             }
             #[inline(always)]
             fn bitmask(self) -> u32 {
@@ -252,6 +276,10 @@ impl SimdF32 for F32x16 {
     #[inline(always)]
     fn select(mask: Self, t: Self, f: Self) -> Self {
         F32x16 { lo: mask.lo.select(t.lo, f.lo), hi: mask.hi.select(t.hi, f.hi) }
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        F32x16 { lo: self.lo.sqrt(), hi: self.hi.sqrt() }
     }
     #[inline(always)]
     fn bitmask(self) -> u32 {

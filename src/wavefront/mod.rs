@@ -13,6 +13,12 @@
 //!  accumulate: PathState radiance ──> tile pixels (film)
 //! ```
 //!
+//! Shading a queue (`stages::shade`) starts with one pass that draws every random number its
+//! vertices may use (`sampler::DrawBatch`, vectorised). Then the queue goes by in chunks of 8:
+//! diffuse vertices under light sampling or MIS are shaded together in SIMD lanes
+//! (`integrator::diffuse`), the others one by one (`Integrator::shade_hit`), and each vertex's
+//! rays are queued in queue order, so the images are bit-identical either way.
+//!
 //! Queue sizes: a tile of 16 x 16 pixels with `spp` samples holds at most 256 x `spp` paths;
 //! samples are processed in batches of at most `SAMPLE_BATCH` per pixel, so a ray queue never
 //! holds more than 256 x 16 = 4096 rays (4096 x 36 bytes = 144 KiB: it stays in L2). Each path
@@ -29,7 +35,7 @@ pub use stages::{ShadeOutputs, Surface};
 use crate::accel::{Accel, TraceStats};
 use crate::integrator::{Integrator, LightSet};
 use crate::math::{ExactRgb, Hit, Vec3};
-use crate::sampler::SamplerKind;
+use crate::sampler::{DrawBatch, SamplerKind};
 use crate::scene::{Camera, Scene};
 
 /// Tile side in pixels.
@@ -76,6 +82,8 @@ pub struct RenderContext<'a> {
     pub sampler: SamplerKind,
     /// Packets for coherent queues (see `stages::Coherence`); `false`: single rays only.
     pub packets: bool,
+    /// Diffuse vertices in SIMD lanes where the integrator allows it (`stages::shade`).
+    pub shading_lanes: bool,
     /// Smallest offset for spawned rays: 1e-5 of the scene's bounding-box diagonal.
     pub scene_epsilon: f32,
 }
@@ -109,6 +117,8 @@ pub struct RenderStats {
     pub shadow_rays: u64,
     /// Closest-hit direct-light rays of uniform hemisphere sampling.
     pub probe_rays: u64,
+    /// Path vertices shaded in SIMD lanes (`integrator::diffuse`) rather than one by one.
+    pub lane_vertices: u64,
     pub trace: TraceStats,
 }
 
@@ -118,6 +128,7 @@ impl RenderStats {
         self.bounce_rays += o.bounce_rays;
         self.shadow_rays += o.shadow_rays;
         self.probe_rays += o.probe_rays;
+        self.lane_vertices += o.lane_vertices;
         self.trace.add(&o.trace);
     }
 
@@ -163,6 +174,9 @@ pub struct Workspace {
     hits: Vec<Option<Hit>>,
     /// Occlusion answers of the shadow queue.
     blocked: Vec<bool>,
+    /// The random numbers of the current depth's vertices.
+    draws: DrawBatch,
+    shade: stages::ShadeScratch,
     pixels: PixelStats,
 }
 
@@ -286,7 +300,17 @@ fn trace_sample_batch(
             shadow: &mut ws.shadow,
             probes: &mut ws.probes,
         };
-        stages::shade(ctx, depth, &ws.rays, &ws.hits, &mut ws.paths, queues);
+        let (rays, hits) = (&ws.rays, &ws.hits);
+        stats.lane_vertices += stages::shade(
+            ctx,
+            depth,
+            rays,
+            hits,
+            &mut ws.paths,
+            &mut ws.draws,
+            &mut ws.shade,
+            queues,
+        );
         stats.shadow_rays += ws.shadow.len() as u64;
         stats.probe_rays += ws.probes.len() as u64;
         stages::trace_shadow_rays(

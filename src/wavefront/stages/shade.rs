@@ -3,8 +3,10 @@
 
 use super::super::{PathState, RayQueue, RenderContext, ShadowQueue};
 use crate::accel::SPHERE_BIT;
+use crate::integrator::diffuse::{self, DiffuseLanes, DiffuseOutputs, LANES};
 use crate::math::{Hit, Ray, Vec3};
-use crate::scene::Scene;
+use crate::sampler::DrawBatch;
+use crate::scene::{Material, Scene};
 
 /// Where the integrator writes the work it creates.
 pub struct ShadeOutputs<'q> {
@@ -47,21 +49,85 @@ impl Surface {
     }
 }
 
+/// Scratch space of the shade stage, reused across depths and tiles.
+#[derive(Default)]
+pub struct ShadeScratch {
+    surfaces: Vec<Option<Surface>>,
+    lanes: DiffuseLanes,
+    lane_out: DiffuseOutputs,
+}
+
+/// Shades every queued ray's hit. The random numbers of all vertices are drawn first, in one
+/// pass (`DrawBatch`). Then the queue goes by in chunks of `LANES`: where the integrator allows
+/// it, the chunk's diffuse vertices are shaded together in SIMD lanes (`integrator::diffuse`),
+/// the others one by one, and every vertex's rays are queued in queue order, so the queues
+/// (and the image) are the same as if all were shaded one by one. Returns the number of
+/// vertices shaded in lanes.
+#[allow(clippy::too_many_arguments)]
 pub fn shade(
     ctx: &RenderContext,
     depth: u32,
     rays: &RayQueue,
     hits: &[Option<Hit>],
     paths: &mut PathState,
+    draws: &mut DrawBatch,
+    scratch: &mut ShadeScratch,
     mut out: ShadeOutputs,
-) {
-    for ((ray, hit), &path) in rays.rays.iter().zip(hits).zip(&rays.path) {
-        match hit {
-            Some(hit) => {
-                let surface = Surface::at(ctx.scene, ray, hit);
-                ctx.integrator.shade_hit(ctx, depth, ray, &surface, path, paths, &mut out);
+) -> u64 {
+    let layout = ctx.integrator.plan_draws(ctx, depth, draws);
+    draws.draw(ctx.sampler, &mut paths.sampler, &rays.path);
+    let lanes_apply =
+        ctx.shading_lanes && depth < ctx.max_depth && ctx.integrator.shades_diffuse_in_lanes(ctx);
+    let mut in_lanes = 0;
+    for start in (0..rays.len()).step_by(LANES) {
+        let chunk = start..(start + LANES).min(rays.len());
+        scratch.surfaces.clear();
+        scratch.lanes.len = 0;
+        for q in chunk.clone() {
+            let (ray, path) = (&rays.rays[q], rays.path[q]);
+            let surface = hits[q].as_ref().map(|hit| Surface::at(ctx.scene, ray, hit));
+            if let Some(albedo) = surface.and_then(|s| lane_albedo(ctx, lanes_apply, &s)) {
+                let throughput = paths.throughput[path as usize];
+                scratch.lanes.push(path, q, ray, surface.as_ref().unwrap(), throughput, albedo);
             }
-            None => ctx.integrator.shade_miss(ctx, depth, ray, path, paths),
+            scratch.surfaces.push(surface);
         }
+        in_lanes += scratch.lanes.len as u64;
+        if let (true, Some(direct)) = (scratch.lanes.len > 0, ctx.integrator.direct_lighting()) {
+            diffuse::shade_diffuse(
+                ctx,
+                direct,
+                depth,
+                &layout,
+                draws,
+                &mut scratch.lanes,
+                &mut scratch.lane_out,
+            );
+        }
+        let mut lane = 0;
+        for (q, surface) in chunk.zip(&scratch.surfaces) {
+            let (ray, path) = (&rays.rays[q], rays.path[q]);
+            match surface {
+                Some(s) if lane_albedo(ctx, lanes_apply, s).is_some() => {
+                    diffuse::queue_lane(&scratch.lane_out, lane, path, paths, &mut out);
+                    lane += 1;
+                }
+                Some(s) => {
+                    let numbers = (&layout, draws.of(q));
+                    ctx.integrator.shade_hit(ctx, depth, ray, s, path, paths, numbers, &mut out);
+                }
+                None => ctx.integrator.shade_miss(ctx, depth, ray, path, paths),
+            }
+        }
+    }
+    in_lanes
+}
+
+/// The albedo of a surface that is shaded in lanes: diffuse, when lanes apply at all.
+#[inline]
+fn lane_albedo(ctx: &RenderContext, lanes_apply: bool, s: &Surface) -> Option<Vec3> {
+    match ctx.scene.materials[s.material as usize] {
+        Material::Diffuse { albedo } if lanes_apply => Some(albedo),
+        _ => None,
     }
 }

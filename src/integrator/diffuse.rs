@@ -1,0 +1,586 @@
+//! Light-sampling vertices on diffuse surfaces, `LANES` paths at a time.
+//!
+//! The course scenes are diffuse boxes lit by area lights. Shaded one vertex after another
+//! (`path::shade_hit`), such a vertex is a chain of dependent square roots, divisions and
+//! compares, and shading was half of a render's time (PERF.md "Whole renders"). Here the same
+//! arithmetic runs over `LANES` vertices in SIMD lanes: each lane computes, operation for
+//! operation and in the same order, what `path::shade_hit` computes for
+//! `DirectLighting::LightSampling` at a `Material::Diffuse` vertex lit by area lights, so the
+//! images are bit-identical to the scalar path's (tests/lighting.rs), which stays for every
+//! other case.
+
+use std::f32::consts::{FRAC_1_PI, TAU};
+
+use super::lights::TriangleEmitter;
+use super::path::{DirectLighting, DrawLayout, RR_START_DEPTH};
+use crate::math::{Ray, Vec3, COS_COEFFS, SIN_COEFFS};
+use crate::sampler::DrawBatch;
+use crate::scene::Light;
+use crate::simd::{SimdF32, VFloat};
+use crate::wavefront::{PathState, RenderContext, ShadeOutputs, Surface};
+
+/// Vertices shaded together.
+pub const LANES: usize = 8;
+type V = VFloat<LANES>;
+type Lanes = [f32; LANES];
+
+/// Three coordinates of `LANES` vectors.
+#[derive(Clone, Copy)]
+struct V3 {
+    x: V,
+    y: V,
+    z: V,
+}
+
+impl V3 {
+    #[inline(always)]
+    fn load(a: &[Lanes; 3]) -> V3 {
+        V3 { x: V::load(&a[0]), y: V::load(&a[1]), z: V::load(&a[2]) }
+    }
+    #[inline(always)]
+    fn splat(v: Vec3) -> V3 {
+        V3 { x: V::splat(v.x), y: V::splat(v.y), z: V::splat(v.z) }
+    }
+    #[inline(always)]
+    fn store(self, out: &mut [Lanes; 3]) {
+        self.x.store(&mut out[0]);
+        self.y.store(&mut out[1]);
+        self.z.store(&mut out[2]);
+    }
+    #[inline(always)]
+    fn add(self, o: V3) -> V3 {
+        V3 { x: self.x + o.x, y: self.y + o.y, z: self.z + o.z }
+    }
+    #[inline(always)]
+    fn sub(self, o: V3) -> V3 {
+        V3 { x: self.x - o.x, y: self.y - o.y, z: self.z - o.z }
+    }
+    #[inline(always)]
+    fn mul(self, o: V3) -> V3 {
+        V3 { x: self.x * o.x, y: self.y * o.y, z: self.z * o.z }
+    }
+    #[inline(always)]
+    fn scale(self, s: V) -> V3 {
+        V3 { x: self.x * s, y: self.y * s, z: self.z * s }
+    }
+    #[inline(always)]
+    fn div(self, s: V) -> V3 {
+        V3 { x: self.x / s, y: self.y / s, z: self.z / s }
+    }
+    /// glam's `cross`, in its order of operations.
+    #[inline(always)]
+    fn cross(self, o: V3) -> V3 {
+        V3 {
+            x: self.y * o.z - o.y * self.z,
+            y: self.z * o.x - o.z * self.x,
+            z: self.x * o.y - o.x * self.y,
+        }
+    }
+    #[inline(always)]
+    fn dot(self, o: V3) -> V {
+        self.x * o.x + self.y * o.y + self.z * o.z
+    }
+    #[inline(always)]
+    fn select(mask: V, t: V3, f: V3) -> V3 {
+        V3 {
+            x: V::select(mask, t.x, f.x),
+            y: V::select(mask, t.y, f.y),
+            z: V::select(mask, t.z, f.z),
+        }
+    }
+    /// glam's `max_element`: `if a > b { a } else { b }`, folded left.
+    #[inline(always)]
+    fn max_element(self) -> V {
+        max(max(self.x, self.y), self.z)
+    }
+    /// A mask of the lanes whose three coordinates are finite.
+    #[inline(always)]
+    fn is_finite(self) -> V {
+        let inf = V::splat(f32::INFINITY);
+        self.x.abs().simd_lt(inf) & self.y.abs().simd_lt(inf) & self.z.abs().simd_lt(inf)
+    }
+    /// Coordinates in the frame (t, b, n), as `Frame::to_local`.
+    #[inline(always)]
+    fn to_local(self, f: &Frame) -> V3 {
+        V3 { x: self.dot(f.t), y: self.dot(f.b), z: self.dot(f.n) }
+    }
+}
+
+/// `if a > b { a } else { b }` per lane.
+#[inline(always)]
+fn max(a: V, b: V) -> V {
+    V::select(b.simd_lt(a), a, b)
+}
+
+/// `f32::min(a, b)` for lanes that are not NaN.
+#[inline(always)]
+fn min(a: V, b: V) -> V {
+    V::select(a.simd_lt(b), a, b)
+}
+
+#[inline(always)]
+fn gt(a: V, b: V) -> V {
+    b.simd_lt(a)
+}
+
+/// `-x`, exactly (also for zeros).
+#[inline(always)]
+fn neg(x: V) -> V {
+    V::splat(-1.0) * x
+}
+
+/// The shading frame of `math::orthonormal_basis`, lane by lane.
+struct Frame {
+    t: V3,
+    b: V3,
+    n: V3,
+}
+
+impl Frame {
+    #[inline(always)]
+    fn new(n: V3) -> Frame {
+        let one = V::splat(1.0);
+        // `1.0f32.copysign(n.z)`: the sign bit of n.z on 1.0.
+        let sign = one | (n.z & V::splat(-0.0));
+        let a = V::splat(-1.0) / (sign + n.z);
+        let b = n.x * n.y * a;
+        let t = V3 { x: one + sign * n.x * n.x * a, y: sign * b, z: neg(sign) * n.x };
+        let bb = V3 { x: b, y: sign + n.y * n.y * a, z: neg(n.y) };
+        Frame { t, b: bb, n }
+    }
+}
+
+/// `math::sincos_turns` lane by lane: the same operations in the same order.
+#[inline(always)]
+fn sincos_turns(u: V) -> (V, V) {
+    let (zero, one) = (V::splat(0.0), V::splat(1.0));
+    let step = |edge: f32| V::select(u.simd_ge(V::splat(edge)), one, zero);
+    let quadrant = step(0.125) + step(0.375) + step(0.625) + step(0.875);
+    let x = (u - quadrant * V::splat(0.25)) * V::splat(TAU);
+    let z = x * x;
+    let [s1, s2, s3] = SIN_COEFFS.map(V::splat);
+    let s = ((s3 * z + s2) * z + s1) * z * x + x;
+    let [c1, c2, c3] = COS_COEFFS.map(V::splat);
+    let c = ((c3 * z + c2) * z + c1) * z * z - V::splat(0.5) * z + one;
+    // Quadrants 1 and 3 swap sine and cosine; 1 and 2 negate the cosine slot, 2 and 3 the sine.
+    let odd = quadrant.simd_eq(one) | quadrant.simd_eq(V::splat(3.0));
+    let (s, c) = (V::select(odd, c, s), V::select(odd, s, c));
+    let neg_sin = quadrant.simd_eq(V::splat(2.0)) | quadrant.simd_eq(V::splat(3.0));
+    let neg_cos = quadrant.simd_eq(one) | quadrant.simd_eq(V::splat(2.0));
+    (V::select(neg_sin, neg(s), s), V::select(neg_cos, neg(c), c))
+}
+
+/// The spawn-point offset of `RenderContext::ray_epsilon`, per lane.
+#[inline(always)]
+fn ray_epsilon(p: V3, scene_epsilon: f32) -> V {
+    const ULPS: f32 = 8.0 * f32::EPSILON;
+    let largest = max(max(p.x.abs(), p.y.abs()), p.z.abs());
+    max(largest * V::splat(ULPS), V::splat(scene_epsilon))
+}
+
+/// `RenderContext::offset_origin`, per lane.
+#[inline(always)]
+fn offset_origin(p: V3, ng: V3, dir: V3, scene_epsilon: f32) -> V3 {
+    let one = V::splat(1.0);
+    let side = V::select(ng.dot(dir).simd_ge(V::splat(0.0)), one, -one);
+    p.add(ng.scale(side * ray_epsilon(p, scene_epsilon)))
+}
+
+/// Up to `LANES` diffuse vertices, loaded lane by lane.
+#[derive(Default)]
+pub struct DiffuseLanes {
+    pub len: usize,
+    pub path: [u32; LANES],
+    /// Queue index of each vertex's ray (its random numbers in the `DrawBatch`).
+    queue: [usize; LANES],
+    p: [Lanes; 3],
+    ng: [Lanes; 3],
+    ns: [Lanes; 3],
+    dir: [Lanes; 3],
+    throughput: [Lanes; 3],
+    albedo: [Lanes; 3],
+}
+
+fn put(a: &mut [Lanes; 3], l: usize, v: Vec3) {
+    (a[0][l], a[1][l], a[2][l]) = (v.x, v.y, v.z);
+}
+
+fn get(a: &[Lanes; 3], l: usize) -> Vec3 {
+    Vec3::new(a[0][l], a[1][l], a[2][l])
+}
+
+impl DiffuseLanes {
+    pub fn is_full(&self) -> bool {
+        self.len == LANES
+    }
+
+    pub fn push(
+        &mut self,
+        path: u32,
+        queue: usize,
+        ray: &Ray,
+        s: &Surface,
+        throughput: Vec3,
+        albedo: Vec3,
+    ) {
+        let l = self.len;
+        self.path[l] = path;
+        self.queue[l] = queue;
+        put(&mut self.p, l, s.p);
+        put(&mut self.ng, l, s.ng);
+        put(&mut self.ns, l, s.ns);
+        put(&mut self.dir, l, ray.dir);
+        put(&mut self.throughput, l, throughput);
+        put(&mut self.albedo, l, albedo);
+        self.len += 1;
+    }
+
+    /// Fills unused lanes with copies of lane 0, so they compute ordinary numbers.
+    fn pad(&mut self) {
+        for l in self.len..LANES {
+            self.path[l] = self.path[0];
+            self.queue[l] = self.queue[0];
+            for a in [
+                &mut self.p,
+                &mut self.ng,
+                &mut self.ns,
+                &mut self.dir,
+                &mut self.throughput,
+                &mut self.albedo,
+            ] {
+                for c in a.iter_mut() {
+                    c[l] = c[0];
+                }
+            }
+        }
+    }
+
+    /// Lanes `0..len` as a bit mask.
+    fn used(&self) -> u32 {
+        (1u32 << self.len) - 1
+    }
+}
+
+/// Shadow rays of one light draw, lane by lane; lane `l` is queued iff bit `l` of `valid`.
+#[derive(Default, Clone)]
+pub struct ShadowLanes {
+    pub valid: u32,
+    origin: [Lanes; 3],
+    dir: [Lanes; 3],
+    t_max: Lanes,
+    contribution: [Lanes; 3],
+}
+
+impl ShadowLanes {
+    pub fn ray(&self, l: usize) -> Ray {
+        Ray::segment(get(&self.origin, l), get(&self.dir, l), 0.0, self.t_max[l])
+    }
+    pub fn contribution(&self, l: usize) -> Vec3 {
+        get(&self.contribution, l)
+    }
+}
+
+/// Continuation rays, lane by lane; lane `l` continues iff bit `l` of `valid`.
+#[derive(Default)]
+pub struct BounceLanes {
+    pub valid: u32,
+    origin: [Lanes; 3],
+    dir: [Lanes; 3],
+    throughput: [Lanes; 3],
+    pdf: Lanes,
+}
+
+impl BounceLanes {
+    pub fn ray(&self, l: usize) -> Ray {
+        Ray::new(get(&self.origin, l), get(&self.dir, l))
+    }
+    pub fn throughput(&self, l: usize) -> Vec3 {
+        get(&self.throughput, l)
+    }
+    pub fn pdf(&self, l: usize) -> f32 {
+        self.pdf[l]
+    }
+}
+
+/// What one batch queues: a shadow ray per light draw and lane, and a bounce per lane.
+#[derive(Default)]
+pub struct DiffuseOutputs {
+    pub shadows: Vec<ShadowLanes>,
+    pub bounce: BounceLanes,
+}
+
+/// Whether `shade_diffuse` can shade this integrator's vertices on diffuse surfaces: light
+/// sampling with area lights only, or MIS with triangle emitters and no other lights.
+pub fn applies(ctx: &RenderContext, direct: DirectLighting) -> bool {
+    let area_lights = ctx.lights.scene_lights.iter().all(|l| matches!(l, Light::Area { .. }));
+    match direct {
+        DirectLighting::LightSampling => area_lights,
+        DirectLighting::Mis => area_lights && ctx.lights.emitters_are_triangles(),
+        DirectLighting::Hemisphere => false,
+    }
+}
+
+/// A lane vertex as `path::shade_hit` sets it up.
+struct Vertex {
+    p: V3,
+    /// Geometric normal on the viewer's side.
+    ng: V3,
+    frame: Frame,
+    wo: V3,
+    throughput: V3,
+    /// The diffuse BSDF value, albedo / pi.
+    f: V3,
+    /// The lanes that hold vertices.
+    used: V,
+}
+
+/// Light samples of `lights::LightSample`, lane by lane; `sampled` masks the lanes that have one.
+struct LightLanes {
+    wi: V3,
+    dist: V,
+    li: V3,
+    pdf: V,
+    cos_light: V,
+    sampled: V,
+}
+
+/// Shades the vertices of `lanes` (reached by rays of depth `depth < max_depth`): their shadow
+/// rays and bounces into `out`, in the order the scalar path would queue them.
+pub fn shade_diffuse(
+    ctx: &RenderContext,
+    direct: DirectLighting,
+    depth: u32,
+    layout: &DrawLayout,
+    draws: &DrawBatch,
+    lanes: &mut DiffuseLanes,
+    out: &mut DiffuseOutputs,
+) {
+    lanes.pad();
+    let v = vertex(lanes);
+    let number = |slot: usize, c: usize| -> V {
+        let a: Lanes = std::array::from_fn(|l| draws.of(lanes.queue[l])[slot][c]);
+        V::load(&a)
+    };
+    out.shadows.clear();
+    let mut slot = layout.light;
+    for light in &ctx.lights.scene_lights {
+        let n = ctx.light_samples;
+        let scale = V::splat(1.0 / n as f32);
+        for _ in 0..n {
+            let ls = sample_area_light(light, v.p, number(slot, 0), number(slot, 1));
+            out.shadows.push(shadow_ray(ctx, &v, &ls, scale));
+            slot += 1;
+        }
+    }
+    if direct == DirectLighting::Mis && ctx.lights.has_emitters() {
+        let n = ctx.light_samples;
+        for k in layout.emitter..layout.bsdf {
+            let ls = sample_triangle_emitter(ctx, v.p, number(k, 0), number(k, 1));
+            // `path::sample_emissive_geometry`: the power heuristic against BSDF sampling.
+            let zero = V::splat(0.0);
+            let wl = ls.wi.to_local(&v.frame);
+            let bsdf_pdf =
+                V::select(gt(v.wo.z, zero) & gt(wl.z, zero), wl.z * V::splat(FRAC_1_PI), zero);
+            let a = V::splat(n as f32) * ls.pdf;
+            let w = V::select(
+                a.simd_eq(zero) & bsdf_pdf.simd_eq(zero),
+                zero,
+                a * a / (a * a + bsdf_pdf * bsdf_pdf),
+            );
+            out.shadows.push(shadow_ray(ctx, &v, &ls, w / V::splat(n as f32)));
+        }
+    }
+    out.bounce.valid = 0;
+    // As in `path::shade_hit`, MIS continues from the last vertex too (the BSDF half).
+    if depth + 1 < ctx.max_depth || direct == DirectLighting::Mis {
+        continue_diffuse(ctx, depth, layout, &v, &number, &mut out.bounce, lanes);
+    }
+}
+
+/// The vertex of `path::shade_hit`: normals turned towards the viewer, the shading frame.
+#[inline(always)]
+fn vertex(lanes: &DiffuseLanes) -> Vertex {
+    let zero = V::splat(0.0);
+    let dir = V3::load(&lanes.dir);
+    let neg_dir = V3 { x: neg(dir.x), y: neg(dir.y), z: neg(dir.z) };
+    let (ng_s, ns_s) = (V3::load(&lanes.ng), V3::load(&lanes.ns));
+    let cos_out = neg(ng_s.dot(dir));
+    let sign = V::select(cos_out.simd_lt(zero), V::splat(-1.0), V::splat(1.0));
+    let ng = ng_s.scale(sign);
+    let ns = ns_s.scale(sign);
+    let ns = V3::select(ns.dot(neg_dir).simd_le(zero), ng, ns);
+    let frame = Frame::new(ns);
+    let wo = neg_dir.to_local(&frame);
+    Vertex {
+        p: V3::load(&lanes.p),
+        ng,
+        frame,
+        wo,
+        throughput: V3::load(&lanes.throughput),
+        f: V3::load(&lanes.albedo).scale(V::splat(FRAC_1_PI)),
+        used: V::from_bitmask(lanes.used()),
+    }
+}
+
+/// `lights::sample_scene_light` for an area light.
+#[inline(always)]
+fn sample_area_light(light: &Light, p: V3, u0: V, u1: V) -> LightLanes {
+    let Light::Area { position, direction, dim_x, dim_y, radiance } = *light else {
+        unreachable!("shade_diffuse runs only with area lights (`applies`)")
+    };
+    let zero = V::splat(0.0);
+    let half = V::splat(0.5);
+    let q = V3::splat(position)
+        .add(V3::splat(dim_x).scale(u0 - half))
+        .add(V3::splat(dim_y).scale(u1 - half));
+    let d = q.sub(p);
+    let dist = d.dot(d).sqrt();
+    let wi = d.div(dist);
+    let cos_l = neg(V3::splat(direction).dot(wi));
+    let area = V::splat(dim_x.cross(dim_y).length());
+    LightLanes {
+        wi,
+        dist,
+        li: V3::splat(radiance),
+        pdf: dist * dist / (area * cos_l),
+        cos_light: cos_l,
+        sampled: gt(cos_l, zero) & gt(dist, zero) & gt(area, zero),
+    }
+}
+
+/// `LightSet::sample_emitter` for triangle emitters: the pick lane by lane (an alias-table
+/// look-up), the point and its pdf in lanes.
+#[inline(always)]
+fn sample_triangle_emitter(ctx: &RenderContext, p: V3, u0: V, u1: V) -> LightLanes {
+    let mut e = [TriangleEmitter::default(); LANES];
+    let mut u0_rescaled: Lanes = [0.0; LANES];
+    let mut picked = 0u32;
+    for l in 0..LANES {
+        if let Some((t, u)) = ctx.lights.pick_triangle_emitter(ctx.scene, u0.lane(l)) {
+            (e[l], u0_rescaled[l], picked) = (t, u, picked | 1 << l);
+        }
+    }
+    let gather = |f: fn(&TriangleEmitter) -> Vec3| -> V3 {
+        let mut a = [[0.0; LANES]; 3];
+        for (l, t) in e.iter().enumerate() {
+            put(&mut a, l, f(t));
+        }
+        V3::load(&a)
+    };
+    let (a, b, c) = (gather(|t| t.a), gather(|t| t.b), gather(|t| t.c));
+    let pick_pdf = V::load(&e.map(|t| t.pick_pdf));
+    let area = V::load(&e.map(|t| t.area));
+    // `lights::sample_emitter_point` for a triangle.
+    let zero = V::splat(0.0);
+    let s = V::load(&u0_rescaled).sqrt();
+    let (b1, b2) = (V::splat(1.0) - s, u1 * s);
+    let (ab, ac) = (b.sub(a), c.sub(a));
+    let q = a.add(ab.scale(b1)).add(ac.scale(b2));
+    let nq = normalize_or_y(ab.cross(ac));
+    let d = q.sub(p);
+    let dist = d.dot(d).sqrt();
+    let wi = d.div(dist);
+    let cos_l = neg(nq.dot(wi));
+    LightLanes {
+        wi,
+        dist,
+        li: gather(|t| t.radiance),
+        pdf: pick_pdf * dist * dist / (area * cos_l),
+        cos_light: cos_l,
+        sampled: V::from_bitmask(picked) & gt(cos_l, zero) & gt(dist, zero),
+    }
+}
+
+/// glam's `normalize_or(Vec3::Y)`.
+#[inline(always)]
+fn normalize_or_y(v: V3) -> V3 {
+    let rcp = V::splat(1.0) / v.dot(v).sqrt();
+    let ok = rcp.abs().simd_lt(V::splat(f32::INFINITY)) & gt(rcp, V::splat(0.0));
+    V3::select(ok, v.scale(rcp), V3::splat(Vec3::Y))
+}
+
+/// `path::queue_shadow_ray`: the occlusion test for one light sample per lane.
+#[inline(always)]
+fn shadow_ray(ctx: &RenderContext, v: &Vertex, ls: &LightLanes, scale: V) -> ShadowLanes {
+    let zero = V::splat(0.0);
+    let wl = ls.wi.to_local(&v.frame);
+    let lit = gt(wl.z, zero) & gt(ls.wi.dot(v.ng), zero);
+    let facing = gt(v.wo.z, zero) & gt(wl.z, zero);
+    let f = V3::select(facing, v.f, V3::splat(Vec3::ZERO));
+    let contribution = v.throughput.mul(f).mul(ls.li).scale(wl.z * scale / ls.pdf);
+    let useful = gt(contribution.max_element(), zero) & contribution.is_finite();
+    let origin = offset_origin(v.p, v.ng, ls.wi, ctx.scene_epsilon);
+    let q = v.p.add(ls.wi.scale(ls.dist));
+    let d = q.sub(origin);
+    let len = d.dot(d).sqrt();
+    let dir = d.div(len);
+    let t_max = len - ray_epsilon(q, ctx.scene_epsilon) / max(ls.cos_light, V::splat(1e-2));
+    let valid = v.used & ls.sampled & lit & useful & gt(t_max, zero);
+    let mut s = ShadowLanes { valid: valid.bitmask(), ..Default::default() };
+    origin.store(&mut s.origin);
+    dir.store(&mut s.dir);
+    t_max.store(&mut s.t_max);
+    contribution.store(&mut s.contribution);
+    s
+}
+
+/// `path::continue_path` for a diffuse vertex: a cosine-weighted bounce, with roulette.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn continue_diffuse(
+    ctx: &RenderContext,
+    depth: u32,
+    layout: &DrawLayout,
+    v: &Vertex,
+    number: &impl Fn(usize, usize) -> V,
+    out: &mut BounceLanes,
+    lanes: &DiffuseLanes,
+) {
+    let (p, ng, frame, wo, throughput, used) = (v.p, v.ng, &v.frame, v.wo, v.throughput, v.used);
+    let zero = V::splat(0.0);
+    let (u1, u2) = (number(layout.bsdf, 0), number(layout.bsdf, 1));
+    // `bsdf::cosine_hemisphere`.
+    let r = u1.sqrt();
+    let (sin_phi, cos_phi) = sincos_turns(u2);
+    let wi = V3 { x: r * cos_phi, y: r * sin_phi, z: max(V::splat(1.0) - u1, zero).sqrt() };
+    let mut valid = used & gt(wo.z, zero) & gt(wi.z, zero);
+    let mut t = throughput.mul(V3::load(&lanes.albedo));
+    if depth + 1 >= RR_START_DEPTH {
+        let roulette = match layout.lobe {
+            Some(k) => number(k, 1),
+            None => zero,
+        };
+        let q = min(t.max_element(), V::splat(1.0));
+        valid = valid & gt(q, zero) & roulette.simd_lt(q);
+        t = t.div(q);
+    }
+    valid = valid & gt(t.max_element(), zero) & t.is_finite();
+    let world = frame.t.scale(wi.x).add(frame.b.scale(wi.y)).add(frame.n.scale(wi.z));
+    let dir = world.scale(V::splat(1.0) / world.dot(world).sqrt());
+    let origin = offset_origin(p, ng, dir, ctx.scene_epsilon);
+    out.valid = valid.bitmask();
+    origin.store(&mut out.origin);
+    dir.store(&mut out.dir);
+    t.store(&mut out.throughput);
+    (wi.z * V::splat(FRAC_1_PI)).store(&mut out.pdf);
+}
+
+/// Queues what lane `l` of a batch produced for path `path`, as the scalar path would have:
+/// its shadow rays in light-draw order, then its bounce.
+pub fn queue_lane(
+    out: &DiffuseOutputs,
+    l: usize,
+    path: u32,
+    paths: &mut PathState,
+    queues: &mut ShadeOutputs,
+) {
+    for s in out.shadows.iter().filter(|s| s.valid & (1 << l) != 0) {
+        queues.shadow.push(s.ray(l), s.contribution(l), path);
+    }
+    let b = &out.bounce;
+    if b.valid & (1 << l) != 0 {
+        paths.throughput[path as usize] = b.throughput(l);
+        paths.bsdf_pdf[path as usize] = b.pdf(l);
+        queues.next.push(b.ray(l), path);
+    }
+}

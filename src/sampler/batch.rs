@@ -1,0 +1,134 @@
+//! The random numbers of a whole queue's path vertices, drawn in one pass.
+//!
+//! Every path vertex at one depth may take the same list of decisions (light samples, a BSDF
+//! sample, lobe and roulette), so shading first plans that list, then draws every number of
+//! every queued path here, and the shading code only reads them. For the Sobol sampler the
+//! draws are one flat loop of integer hashing over arrays, which the compiler vectorises; drawn
+//! one at a time inside the shading code they cost more than the area-light sampling itself
+//! (PERF.md "Whole renders").
+
+use super::{sobol, splitmix64, Decision, PathSampler, SamplerKind};
+
+/// One 2D number per (queued path, planned slot), in the order the slots were planned.
+#[derive(Default)]
+pub struct DrawBatch {
+    depth: u32,
+    /// Per slot: the decision, its draw number and how many draws of it a vertex takes.
+    slots: Vec<(Decision, u32, u32)>,
+    /// Per slot: the Sobol dimension key of `(decision, depth)`.
+    dimensions: Vec<u64>,
+    numbers: Vec<[f32; 2]>,
+    /// Scratch for the Sobol pass: per number, its sequence key and index.
+    keys: Vec<u64>,
+    indices: Vec<u32>,
+}
+
+impl DrawBatch {
+    /// Starts a new plan for vertices reached by rays of depth `depth`.
+    pub fn plan(&mut self, depth: u32) {
+        self.depth = depth;
+        self.slots.clear();
+        self.dimensions.clear();
+    }
+
+    /// Plans `count` draws of `decision` per vertex; returns the first one's slot.
+    pub fn add(&mut self, decision: Decision, count: u32) -> usize {
+        let first = self.slots.len();
+        for sub in 0..count {
+            self.slots.push((decision, sub, count));
+            self.dimensions.push(decision.dimension(self.depth));
+        }
+        first
+    }
+
+    /// Numbers per vertex.
+    pub fn stride(&self) -> usize {
+        self.slots.len()
+    }
+
+    /// Draws every planned number for the paths `order` names (queue order) among `samplers`.
+    pub fn draw(&mut self, kind: SamplerKind, samplers: &mut [PathSampler], order: &[u32]) {
+        self.numbers.clear();
+        if self.slots.is_empty() {
+            return; // Nothing planned (normal shading, or vertices past the last depth).
+        }
+        match kind {
+            SamplerKind::Independent => {
+                for &p in order {
+                    let sampler = &mut samplers[p as usize];
+                    for _ in 0..self.slots.len() {
+                        self.numbers.push([sampler.rng.next_f32(), sampler.rng.next_f32()]);
+                    }
+                }
+            }
+            SamplerKind::Sobol => {
+                let stride = self.slots.len();
+                let total = order.len() * stride;
+                self.keys.resize(total, 0);
+                self.indices.resize(total, 0);
+                let rows =
+                    self.keys.chunks_exact_mut(stride).zip(self.indices.chunks_exact_mut(stride));
+                for ((keys, indices), &p) in rows.zip(order) {
+                    let sampler = &samplers[p as usize];
+                    for (k, (&(_, sub, count), &dimension)) in
+                        self.slots.iter().zip(&self.dimensions).enumerate()
+                    {
+                        keys[k] = sampler.pixel_key ^ dimension;
+                        indices[k] = sampler.sample.wrapping_mul(count).wrapping_add(sub);
+                    }
+                }
+                self.numbers.resize(self.keys.len(), [0.0; 2]);
+                sobol_pass(&self.keys, &self.indices, &mut self.numbers);
+            }
+        }
+    }
+
+    /// The numbers of queue entry `q`, one per planned slot.
+    #[inline]
+    pub fn of(&self, q: usize) -> &[[f32; 2]] {
+        let n = self.slots.len();
+        &self.numbers[q * n..(q + 1) * n]
+    }
+}
+
+/// `out[k] = sobol_2d(splitmix64(keys[k]), indices[k])`: branch-free and independent per k, so
+/// it compiles to SIMD over 8 lanes.
+fn sobol_pass(keys: &[u64], indices: &[u32], out: &mut [[f32; 2]]) {
+    for ((o, &key), &index) in out.iter_mut().zip(keys).zip(indices) {
+        *o = sobol::sobol_2d(splitmix64(key), index);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The batch hands every path exactly the numbers `PathSampler::get_2d` would draw.
+    #[test]
+    fn batch_draws_equal_single_sobol_draws() {
+        let (depth, spp) = (3, 64);
+        let mut samplers: Vec<PathSampler> =
+            (0..37).map(|i| PathSampler::new(7, 1000 + i / 5, (i % 5) as u32, spp)).collect();
+        let mut batch = DrawBatch::default();
+        batch.plan(depth);
+        let lights = batch.add(Decision::SceneLight(1), 4);
+        let bsdf = batch.add(Decision::Bsdf, 1);
+        let lobe = batch.add(Decision::LobeAndRoulette, 1);
+        let order: Vec<u32> = (0..samplers.len() as u32).rev().collect();
+        batch.draw(SamplerKind::Sobol, &mut samplers, &order);
+        for (q, &p) in order.iter().enumerate() {
+            let (got, s) = (batch.of(q), &mut samplers[p as usize]);
+            for j in 0..4 {
+                let want = s.get_2d(SamplerKind::Sobol, depth, Decision::SceneLight(1), j, 4);
+                assert_eq!(got[lights + j as usize], want);
+            }
+            assert_eq!(got[bsdf], s.get_2d(SamplerKind::Sobol, depth, Decision::Bsdf, 0, 1));
+            let want = s.get_2d(SamplerKind::Sobol, depth, Decision::LobeAndRoulette, 0, 1);
+            assert_eq!(got[lobe], want);
+        }
+        // A plan with no slots draws nothing, for any number of paths.
+        batch.plan(depth);
+        batch.draw(SamplerKind::Sobol, &mut samplers, &order);
+        assert!(batch.of(order.len() - 1).is_empty());
+    }
+}
