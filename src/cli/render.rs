@@ -520,6 +520,7 @@ mod tests {
             ("-s 2 -r 64 48 --part 0/5 x.dae", "cannot be cut"),
             ("-r 64 48 --crop 0 0 65 1 x.dae", "--crop 0 0 65 1"),
             ("--crop 0 0 1 x.dae", "not a valid number"),
+            ("--bvh-node L --part 0/2 -s 2 x.dae", "cannot render a part"),
             ("--bvh-node L --shading light x.dae", "conflicts"),
             ("--bvh-node L -H x.dae", "conflicts"),
             ("x.dae --bvh-node", "needs a value"),
