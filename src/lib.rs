@@ -67,7 +67,9 @@
 //!            -> geometry (SoA triangles, Möller-Trumbore, spheres)
 //!            -> accel (binned-SAH BVH, flat nodes, single-ray and packet traversal)
 //!            -> wavefront (generate -> extend -> shade -> shadow -> accumulate)
-//!            -> film (linear accumulator) -> image file (PNG tone-mapped, EXR linear)
+//!            -> render (tiles, threads; a crop and a range of samples for a part)
+//!            -> film -> image file (PNG tone-mapped, EXR linear)
+//!            -> farm (plan of parts, .ptpart files of exact sums, the exact merge)
 //! ```
 
 pub mod accel;
@@ -75,6 +77,7 @@ pub mod bench;
 pub mod bvh_preview;
 pub mod convergence;
 pub mod error;
+pub mod farm;
 pub mod film;
 pub mod geometry;
 pub mod integrator;

@@ -16,6 +16,8 @@ fn main() -> ExitCode {
         Some("converge") => cli::converge::run(&args[1..]),
         Some("gen") => cli::gen::run(&args[1..]),
         Some("chart") => cli::chart::run(&args[1..]),
+        Some("merge") => cli::merge::run(&args[1..]),
+        Some("part-info") => cli::merge::run_info(&args[1..]),
         _ => cli::render::run(&args),
     };
     cli::exit_code(result)

@@ -1,5 +1,6 @@
 //! The render driver: scene + accel + config -> linear image, with statistics and progress.
 
+use std::ops::Range;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
@@ -7,7 +8,7 @@ use rayon::prelude::*;
 
 use crate::accel::Accel;
 use crate::integrator::Integrator;
-use crate::math::Vec3;
+use crate::math::{ExactRgb, Vec3};
 use crate::sampler::SamplerKind;
 use crate::scene::{Camera, Scene};
 use crate::wavefront::{self, RenderContext, RenderStats, Tile, Workspace};
@@ -25,6 +26,13 @@ pub struct RenderConfig {
     pub max_depth: u32,
     /// Adaptive sampling (`-a batch tolerance`).
     pub adaptive: Option<(u32, f32)>,
+    /// Only these samples of each pixel (a part of a farm render, `--samples A..B`); `None`:
+    /// all of `0..spp`. Sample `i` is the same wherever it is rendered.
+    pub samples: Option<Range<u32>>,
+    /// Only these pixels (`--crop`); `None`: the whole image. Other pixels stay black.
+    pub crop: Option<Rect>,
+    /// Return the exact per-pixel sums of the rendered pixels (`RenderOutput::sums`).
+    pub keep_sums: bool,
     /// Worker threads (`-t`); 0 = all cores.
     pub threads: usize,
     pub seed: u64,
@@ -53,6 +61,9 @@ impl Default for RenderConfig {
             light_samples: 1,
             max_depth: 1,
             adaptive: None,
+            samples: None,
+            crop: None,
+            keep_sums: false,
             threads: 0,
             seed: 0,
             sampler: SamplerKind::default(),
@@ -65,6 +76,46 @@ impl Default for RenderConfig {
     }
 }
 
+/// A pixel rectangle `x0..x1` x `y0..y1` (ends excluded), row 0 at the top.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Rect {
+    pub x0: u32,
+    pub y0: u32,
+    pub x1: u32,
+    pub y1: u32,
+}
+
+impl Rect {
+    pub fn of_image(width: u32, height: u32) -> Rect {
+        Rect { x0: 0, y0: 0, x1: width, y1: height }
+    }
+
+    pub fn width(&self) -> u32 {
+        self.x1 - self.x0
+    }
+
+    pub fn height(&self) -> u32 {
+        self.y1 - self.y0
+    }
+
+    pub fn pixel_count(&self) -> usize {
+        self.width() as usize * self.height() as usize
+    }
+
+    /// The part of `tile` inside this rectangle, if any.
+    fn clip(&self, t: Tile) -> Option<Tile> {
+        let (x0, y0) = (t.x0.max(self.x0), t.y0.max(self.y0));
+        let (x1, y1) = ((t.x0 + t.width).min(self.x1), (t.y0 + t.height).min(self.y1));
+        (x0 < x1 && y0 < y1).then_some(Tile { x0, y0, width: x1 - x0, height: y1 - y0 })
+    }
+}
+
+impl std::fmt::Display for Rect {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "({}, {})-({}, {})", self.x0, self.y0, self.x1, self.y1)
+    }
+}
+
 /// A rendered image (linear radiance, row-major, row 0 at the top) and how it was made.
 pub struct RenderOutput {
     pub width: u32,
@@ -72,6 +123,10 @@ pub struct RenderOutput {
     pub pixels: Vec<Vec3>,
     /// Samples taken by each pixel (all equal to `spp` unless adaptive sampling stopped early).
     pub samples: Vec<u32>,
+    /// The pixels rendered: the crop, or the whole image.
+    pub window: Rect,
+    /// The exact radiance sums of the window's pixels, row-major (with `keep_sums`; else empty).
+    pub sums: Vec<ExactRgb>,
     pub stats: RenderStats,
     pub time: Duration,
 }
@@ -90,6 +145,7 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         ),
         None => Camera::new(&scene.camera, bounds, config.width, config.height),
     };
+    let (samples, window) = check_range_and_crop(config)?;
     let lights = config.integrator.light_set(scene);
     let ctx = RenderContext {
         scene,
@@ -98,6 +154,7 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         integrator: &config.integrator,
         lights: &lights,
         spp: config.spp,
+        samples,
         light_samples: config.light_samples,
         max_depth: config.max_depth,
         adaptive: config.adaptive,
@@ -111,7 +168,10 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         .num_threads(config.threads)
         .build()
         .map_err(|e| crate::Error::new(format!("cannot start {} threads: {e}", config.threads)))?;
-    let tiles = wavefront::tiles(config.width, config.height);
+    let tiles: Vec<Tile> = wavefront::tiles(config.width, config.height)
+        .into_iter()
+        .filter_map(|t| window.clip(t))
+        .collect();
     let done = AtomicUsize::new(0);
     let start = Instant::now();
     let (results, time): (Vec<TileResult>, Duration) = std::thread::scope(|s| {
@@ -136,28 +196,73 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
 
     let n = (config.width * config.height) as usize;
     let (mut pixels, mut samples) = (vec![Vec3::ZERO; n], vec![0; n]);
+    let mut sums =
+        vec![ExactRgb::default(); if config.keep_sums { window.pixel_count() } else { 0 }];
     let mut stats = RenderStats::default();
     for (tile, r) in tiles.iter().zip(&results) {
-        copy_tile(&mut pixels, config.width, tile, &r.pixels);
+        let means: Vec<Vec3> =
+            r.sums.iter().zip(&r.samples).map(|(s, &n)| Vec3::from_array(s.mean(n))).collect();
+        copy_tile(&mut pixels, config.width, tile, &means);
         copy_tile(&mut samples, config.width, tile, &r.samples);
+        if config.keep_sums {
+            let local = Tile { x0: tile.x0 - window.x0, y0: tile.y0 - window.y0, ..*tile };
+            copy_tile(&mut sums, window.width(), &local, &r.sums);
+        }
         stats.add(&r.stats);
     }
-    Ok(RenderOutput { width: config.width, height: config.height, pixels, samples, stats, time })
+    let (width, height) = (config.width, config.height);
+    Ok(RenderOutput { width, height, pixels, samples, window, sums, stats, time })
+}
+
+/// The sample range and the pixel window of `config`, checked against the image and `-s`.
+fn check_range_and_crop(config: &RenderConfig) -> crate::Result<(Range<u32>, Rect)> {
+    let image = Rect::of_image(config.width, config.height);
+    let samples = config.samples.clone().unwrap_or(0..config.spp);
+    if samples.start >= samples.end || samples.end > config.spp {
+        crate::bail!(
+            "samples {}..{}: expected a non-empty range within 0..{} (-s {})",
+            samples.start,
+            samples.end,
+            config.spp,
+            config.spp
+        );
+    }
+    if config.adaptive.is_some() && samples != (0..config.spp) {
+        crate::bail!(
+            "samples {}..{}: adaptive sampling (-a) decides per pixel how many samples to take, \
+             so it cannot render a range of them (split the image, not the samples)",
+            samples.start,
+            samples.end
+        );
+    }
+    let window = config.crop.unwrap_or(image);
+    if window.x0 >= window.x1
+        || window.y0 >= window.y1
+        || window.x1 > image.x1
+        || window.y1 > image.y1
+    {
+        crate::bail!(
+            "crop {window}: expected a non-empty rectangle within the {}x{} image",
+            config.width,
+            config.height
+        );
+    }
+    Ok((samples, window))
 }
 
 struct TileResult {
-    pixels: Vec<Vec3>,
+    sums: Vec<ExactRgb>,
     samples: Vec<u32>,
     stats: RenderStats,
 }
 
 fn render_one_tile(ctx: &RenderContext, tile: Tile, ws: &mut Workspace) -> TileResult {
     let mut r = TileResult {
-        pixels: vec![Vec3::ZERO; tile.pixel_count()],
+        sums: vec![ExactRgb::default(); tile.pixel_count()],
         samples: vec![0; tile.pixel_count()],
         stats: RenderStats::default(),
     };
-    wavefront::render_tile(ctx, tile, ws, &mut r.pixels, &mut r.samples, &mut r.stats);
+    wavefront::render_tile(ctx, tile, ws, &mut r.sums, &mut r.samples, &mut r.stats);
     r
 }
 
@@ -196,5 +301,36 @@ fn report_progress(done: &AtomicUsize, total: usize, start: Instant) {
     }
     if printed {
         let _ = write!(std::io::stderr(), "\r\x1b[2K");
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sample_ranges_and_crops_are_checked() {
+        let config = RenderConfig { width: 64, height: 48, spp: 8, ..RenderConfig::default() };
+        let check = |f: &dyn Fn(&mut RenderConfig)| {
+            let mut c = config.clone();
+            f(&mut c);
+            check_range_and_crop(&c).map_err(|e| e.to_string())
+        };
+        assert_eq!(check(&|_| {}), Ok((0..8, Rect::of_image(64, 48))));
+        let crop = Rect { x0: 16, y0: 8, x1: 64, y1: 9 };
+        assert_eq!(check(&|c| c.crop = Some(crop)), Ok((0..8, crop)));
+        assert!(check(&|c| c.samples = Some(3..9)).unwrap_err().contains("within 0..8"));
+        assert!(check(&|c| c.samples = Some(3..3)).is_err());
+        let wide = Rect { x0: 0, y0: 0, x1: 65, y1: 1 };
+        assert!(check(&|c| c.crop = Some(wide)).unwrap_err().contains("crop (0, 0)-(65, 1)"));
+        let adaptive_range = |c: &mut RenderConfig| {
+            c.adaptive = Some((4, 0.1));
+            c.samples = Some(0..4);
+        };
+        assert!(check(&adaptive_range).unwrap_err().contains("adaptive"));
+        let tile = Tile { x0: 0, y0: 0, width: 16, height: 16 };
+        assert_eq!(crop.clip(tile), None);
+        let inside = Tile { x0: 16, y0: 0, width: 16, height: 16 };
+        assert_eq!(crop.clip(inside), Some(Tile { x0: 16, y0: 8, width: 16, height: 1 }));
     }
 }

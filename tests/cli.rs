@@ -555,6 +555,12 @@ fn stdout_commands(dir: &Path) -> Vec<(&'static str, Vec<String>)> {
                 &d("c.csv"),
             ]),
         ),
+        (
+            "part",
+            strings(&["-s", "2", "-r", "16", "12", "--part", "0/2", "-f", &d("q.ptpart"), &scene]),
+        ),
+        ("merge", strings(&["merge", &d("p0.ptpart"), &d("p1.ptpart"), "-f", &d("m.png")])),
+        ("part-info", strings(&["part-info", &d("p0.ptpart")])),
         ("--help", strings(&["--help"])),
         ("--version", strings(&["--version"])),
         ("bench --help", strings(&["bench", "--help"])),
@@ -562,10 +568,12 @@ fn stdout_commands(dir: &Path) -> Vec<(&'static str, Vec<String>)> {
         ("converge --help", strings(&["converge", "--help"])),
         ("gen --help", strings(&["gen", "--help"])),
         ("chart --help", strings(&["chart", "--help"])),
+        ("merge --help", strings(&["merge", "--help"])),
     ]
 }
 
-/// Renders the 16 x 12 image `a.png` the stdout tests compare.
+/// Renders the 16 x 12 image `a.png` the stdout tests compare, and the two parts
+/// `p0.ptpart`, `p1.ptpart` they merge.
 fn stdout_test_dir(name: &str) -> PathBuf {
     let dir = scratch_dir(name);
     let image = dir.join("a.png");
@@ -574,7 +582,22 @@ fn stdout_test_dir(name: &str) -> PathBuf {
         ["-r", "16", "12", "--quiet", "-f", image.to_str().unwrap(), scene.to_str().unwrap()];
     let out = pathtracer(&args);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for k in 0..2 {
+        let part = dir.join(format!("p{k}.ptpart"));
+        let spec = format!("{k}/2");
+        let args = ["-s", "2", "-r", "16", "12", "--part", &spec, "-f", part.to_str().unwrap()];
+        let out = pathtracer(&[&args[..], &[scene.to_str().unwrap()]].concat());
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    }
     dir
+}
+
+/// The part and the merged image of `stdout_commands` are complete.
+fn assert_parts_written(dir: &Path) {
+    let merged = image::open(dir.join("m.png")).unwrap();
+    assert_eq!((merged.width(), merged.height()), (16, 12));
+    let info = pathtracer(&["part-info", dir.join("q.ptpart").to_str().unwrap()]);
+    assert!(info.status.success(), "{}", String::from_utf8_lossy(&info.stderr));
 }
 
 #[test]
@@ -593,6 +616,7 @@ fn a_full_stdout_is_a_one_line_error_and_the_files_are_still_written() {
     let scene = std::fs::read_to_string(dir.join("g.dae")).unwrap();
     assert!(scene.trim_end().ends_with("</COLLADA>"), "{scene}");
     assert!(std::fs::read_to_string(dir.join("c.csv")).unwrap().lines().count() >= 3);
+    assert_parts_written(&dir);
     assert_eq!(temporary_files(&dir), Vec::<String>::new());
 }
 
@@ -610,6 +634,7 @@ fn a_closed_stdout_ends_quietly_and_the_files_are_still_written() {
     let img = image::open(dir.join("r.png")).unwrap();
     assert_eq!((img.width(), img.height()), (16, 12));
     assert!(std::fs::read_to_string(dir.join("g.dae")).unwrap().contains("</COLLADA>"));
+    assert_parts_written(&dir);
     assert_eq!(temporary_files(&dir), Vec::<String>::new());
 }
 

@@ -32,6 +32,7 @@ pub mod chart;
 pub mod compare;
 pub mod converge;
 pub mod gen;
+pub mod merge;
 pub mod render;
 
 use std::fmt;

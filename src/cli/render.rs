@@ -6,7 +6,7 @@ use std::time::Instant;
 use super::{check_output, parse_in_range, parse_number, Report};
 use pathtracer::accel::{binary_node, Accel, AccelKind, BinaryNode, BuildParams};
 use pathtracer::integrator::{DirectLighting, Integrator};
-use pathtracer::render::{render, RenderConfig};
+use pathtracer::render::{render, Rect, RenderConfig};
 use pathtracer::sampler::SamplerKind;
 use pathtracer::{bail, bvh_preview, scene, Error, Result};
 
@@ -18,6 +18,8 @@ Usage: pathtracer [OPTIONS] SCENE.dae
        pathtracer converge SCENE.dae --spp LIST ...      (error and time against spp)
        pathtracer gen cornell|tori N -o FILE.dae     (see pathtracer gen --help)
        pathtracer chart accuracy|scaling ...         (see pathtracer chart --help)
+       pathtracer --part K/N [OPTIONS] SCENE.dae -f PART.ptpart   (one part of a farm render)
+       pathtracer merge PART.ptpart... -f OUT.png|OUT.exr      (see pathtracer merge --help)
 
 Renders a CS184 COLLADA scene (course camera and lighting conventions).
 
@@ -45,6 +47,11 @@ Our options:
                       node's primitive count and SAH cost
   --info              print what the scene holds and exit
   --quiet             no progress line
+
+Parts of a render for many machines (written to a .ptpart file; pathtracer merge joins them):
+  --part K/N          part K (0-based) of the plan of N parts (bands of pixels, sample ranges)
+  --samples A..B      only samples A to B-1 of each pixel (not with -a)
+  --crop X0 Y0 X1 Y1  only the pixels X0..X1-1, Y0..Y1-1 (from the top left)
   -h, --help          this help
   -V, --version       version";
 
@@ -58,6 +65,8 @@ pub(super) struct Cli {
     pub output: Option<PathBuf>,
     pub info: bool,
     hemisphere: bool,
+    /// `--part K/N`.
+    part: Option<(u32, u32)>,
     pub accel: AccelKind,
     pub config: RenderConfig,
     /// `--bvh-node PATH`: the binary BVH node to preview.
@@ -84,15 +93,15 @@ fn print_info(cli: &Cli) -> Result<()> {
 }
 
 fn render_to_file(cli: &Cli) -> Result<()> {
-    let output = cli.output.clone().unwrap_or_else(|| default_output(&cli.scene));
-    check_output_path(&output)?;
+    let output = cli.output.clone().unwrap_or_else(|| default_output(cli));
+    check_output_path(&output, is_part(cli))?;
     let what = if cli.output.is_some() { "-f" } else { "output (the scene's name with .png)" };
     check_output(what, &output, &[&cli.scene])?;
-    if cli.config.adaptive.is_some() {
+    if cli.config.adaptive.is_some() && !is_part(cli) {
         let rate = pathtracer::film::rate_image_path(&output);
         check_output("rate image", &rate, &[&cli.scene])?;
     }
-    let config = &cli.config;
+    let config = &RenderConfig { keep_sums: is_part(cli), ..cli.config.clone() };
     let threads = if config.threads == 0 { available_threads() } else { config.threads };
     // The statistics go to stdout through a Report: whether they can be printed (a full disk,
     // `| head -1`) does not decide whether the image is written. A failed print is reported
@@ -139,7 +148,13 @@ fn render_to_file(cli: &Cli) -> Result<()> {
         let camera = bvh_preview::camera_for(&scene, config);
         bvh_preview::mark_node(&mut out.pixels, &camera, &accel, n);
     }
-    print_render_stats(&mut report, &out);
+    print_render_stats(&mut report, &out.stats, out.time);
+    if is_part(cli) {
+        report.print(format_args!("[PathTracer] Saving part to file: {}... ", output.display()));
+        super::merge::write_part_file(&cli.scene, &output, config, cli.accel, &out)?;
+        report.print(format_args!("Done!\n[PathTracer] Job completed.\n"));
+        return report.finish();
+    }
 
     report.print(format_args!("[PathTracer] Saving to file: {}... ", output.display()));
     pathtracer::film::write_image(&output, out.width, out.height, &out.pixels)?;
@@ -157,9 +172,12 @@ fn preview_node(scene: &scene::Scene, path: &str) -> Result<BinaryNode> {
     binary_node(scene, path, BuildParams::default()).map_err(|e| e.context("--bvh-node"))
 }
 
-fn print_render_stats(report: &mut Report, out: &pathtracer::render::RenderOutput) {
-    let s = &out.stats;
-    let secs = out.time.as_secs_f64();
+pub(super) fn print_render_stats(
+    report: &mut Report,
+    s: &pathtracer::wavefront::RenderStats,
+    time: std::time::Duration,
+) {
+    let secs = time.as_secs_f64();
     let rays = s.total_rays();
     let per_ray = |n: u64| n as f64 / rays.max(1) as f64;
     report.print(format_args!("[PathTracer] Rendering... 100%! ({secs:.4}s)\n"));
@@ -184,16 +202,31 @@ pub(super) fn available_threads() -> usize {
     std::thread::available_parallelism().map_or(1, |n| n.get())
 }
 
-/// `dir/scene.dae` -> `scene.png` in the current directory.
-fn default_output(scene: &Path) -> PathBuf {
-    let stem = scene.file_stem().map_or("out".into(), |s| s.to_string_lossy().into_owned());
-    PathBuf::from(format!("{stem}.png"))
+/// `dir/scene.dae` -> `scene.png` in the current directory (`scene.part-K-of-N.ptpart` or
+/// `scene.ptpart` for a part).
+fn default_output(cli: &Cli) -> PathBuf {
+    let stem = cli.scene.file_stem().map_or("out".into(), |s| s.to_string_lossy().into_owned());
+    match cli.part {
+        Some((k, n)) => PathBuf::from(format!("{stem}.part-{k}-of-{n}.ptpart")),
+        None if is_part(cli) => PathBuf::from(format!("{stem}.ptpart")),
+        None => PathBuf::from(format!("{stem}.png")),
+    }
+}
+
+/// A part of a render (`--part`, `--samples`, `--crop`, or `-f X.ptpart`): the output is a
+/// part file of exact sums for `pathtracer merge`, not an image.
+fn is_part(cli: &Cli) -> bool {
+    let ptpart = cli.output.as_deref().and_then(|p| p.extension()).is_some_and(|e| e == "ptpart");
+    ptpart || cli.part.is_some() || cli.config.samples.is_some() || cli.config.crop.is_some()
 }
 
 /// Fail before rendering (not after minutes of work) if the output cannot be written.
-fn check_output_path(path: &Path) -> Result<()> {
+fn check_output_path(path: &Path, part: bool) -> Result<()> {
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    if !matches!(ext.as_deref(), Some("png") | Some("exr")) {
+    if part && ext.as_deref() != Some("ptpart") {
+        bail!("-f {}: a part (--part, --samples, --crop) is written to a .ptpart file (join parts with pathtracer merge)", path.display());
+    }
+    if !part && !matches!(ext.as_deref(), Some("png") | Some("exr")) {
         bail!("-f {}: output must end in .png or .exr", path.display());
     }
     let parent = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
@@ -209,6 +242,7 @@ pub(super) fn parse_args(args: &[String]) -> Result<Cli> {
         output: None,
         info: false,
         hemisphere: false,
+        part: None,
         accel: AccelKind::Bvh,
         bvh_node: None,
         config: RenderConfig {
@@ -262,6 +296,20 @@ pub(super) fn parse_args(args: &[String]) -> Result<Cli> {
                 })?;
             }
             "--no-bvh" => cli.accel = AccelKind::BruteForce,
+            "--part" => cli.part = Some(parse_fraction(value("--part")?)?),
+            "--samples" => cli.config.samples = Some(parse_samples(value("--samples")?)?),
+            "--crop" => {
+                let mut c = [0; 4];
+                for (i, v) in c.iter_mut().enumerate() {
+                    *v = parse_in_range(
+                        "--crop",
+                        value(["--crop", "--crop (Y0)", "--crop (X1)", "--crop (Y1)"][i])?,
+                        0,
+                        MAX_SIDE,
+                    )?;
+                }
+                cli.config.crop = Some(Rect { x0: c[0], y0: c[1], x1: c[2], y1: c[3] });
+            }
             "--info" => cli.info = true,
             "--quiet" | "-q" => cli.config.progress = false,
             a if a.starts_with('-') && a.len() > 1 => bail!("unknown option '{a}' (see --help)"),
@@ -288,7 +336,72 @@ pub(super) fn parse_args(args: &[String]) -> Result<Cli> {
         }
         cli.config.integrator = Integrator::Normals;
     }
+    if cli.bvh_node.is_some() && is_part(&cli) {
+        bail!("--bvh-node previews a whole image; it cannot render a part (--part, --samples, --crop)");
+    }
+    resolve_part(&mut cli)?;
     Ok(cli)
+}
+
+/// `--part K/N` becomes the plan's crop and samples; explicit ranges are checked.
+fn resolve_part(cli: &mut Cli) -> Result<()> {
+    let c = &mut cli.config;
+    if let Some((k, n)) = cli.part {
+        if c.samples.is_some() || c.crop.is_some() {
+            bail!("--part {k}/{n} conflicts with --samples and --crop (give a part of the plan or the ranges, not both)");
+        }
+        let part = pathtracer::farm::plan_part(c.width, c.height, c.spp, k, n)?;
+        if c.adaptive.is_some() && part.samples != (0..c.spp) {
+            bail!("--part {k}/{n}: the plan of {n} parts splits each pixel's samples, which adaptive sampling (-a) cannot do; use at most {} parts (one per band of 16 rows)", c.height.div_ceil(pathtracer::wavefront::TILE));
+        }
+        (c.samples, c.crop) = (Some(part.samples), Some(part.crop));
+    }
+    if let Some(s) = &c.samples {
+        if s.end > c.spp {
+            bail!("--samples {}..{}: beyond -s {}", s.start, s.end, c.spp);
+        }
+        if c.adaptive.is_some() && *s != (0..c.spp) {
+            bail!("--samples {}..{}: adaptive sampling (-a) decides per pixel how many samples to take, so it cannot render a range of them (split the pixels with --crop instead)", s.start, s.end);
+        }
+    }
+    if let Some(r) = c.crop {
+        if r.x0 >= r.x1 || r.y0 >= r.y1 || r.x1 > c.width || r.y1 > c.height {
+            bail!(
+                "--crop {} {} {} {}: expected X0 < X1 <= {} and Y0 < Y1 <= {} (-r {} {})",
+                r.x0,
+                r.y0,
+                r.x1,
+                r.y1,
+                c.width,
+                c.height,
+                c.width,
+                c.height
+            );
+        }
+    }
+    Ok(())
+}
+
+/// `K/N` of `--part`.
+fn parse_fraction(text: &str) -> Result<(u32, u32)> {
+    let bad = || Error::new(format!("--part: expected K/N with 0 <= K < N, got '{text}'"));
+    let (k, n) = text.split_once('/').ok_or_else(bad)?;
+    let (k, n): (u32, u32) = (k.parse().map_err(|_| bad())?, n.parse().map_err(|_| bad())?);
+    if k >= n {
+        return Err(bad());
+    }
+    Ok((k, n))
+}
+
+/// `A..B` of `--samples`.
+fn parse_samples(text: &str) -> Result<std::ops::Range<u32>> {
+    let bad = || Error::new(format!("--samples: expected A..B with 0 <= A < B, got '{text}'"));
+    let (a, b) = text.split_once("..").ok_or_else(bad)?;
+    let (a, b): (u32, u32) = (a.parse().map_err(|_| bad())?, b.parse().map_err(|_| bad())?);
+    if a >= b {
+        return Err(bad());
+    }
+    Ok(a..b)
 }
 
 fn parse_integrator(name: &str) -> Result<Integrator> {
@@ -397,6 +510,17 @@ mod tests {
             ("-s 4", "no scene file"),
             ("--shading foo x.dae", "unknown integrator"),
             ("-H --shading mis x.dae", "conflicts"),
+            ("--part 2/2 x.dae", "expected K/N"),
+            ("--part 1 x.dae", "expected K/N"),
+            ("--part 0/4 --crop 0 0 1 1 x.dae", "conflicts"),
+            ("-s 8 --samples 3..3 x.dae", "expected A..B"),
+            ("-s 8 --samples 3..9 x.dae", "beyond -s 8"),
+            ("-s 8 -a 4 0.1 --samples 0..4 x.dae", "adaptive"),
+            ("-s 8 -a 4 0.1 -r 64 48 --part 0/4 x.dae", "adaptive"),
+            ("-s 2 -r 64 48 --part 0/5 x.dae", "cannot be cut"),
+            ("-r 64 48 --crop 0 0 65 1 x.dae", "--crop 0 0 65 1"),
+            ("--crop 0 0 1 x.dae", "not a valid number"),
+            ("--bvh-node L --part 0/2 -s 2 x.dae", "cannot render a part"),
             ("--bvh-node L --shading light x.dae", "conflicts"),
             ("--bvh-node L -H x.dae", "conflicts"),
             ("x.dae --bvh-node", "needs a value"),
@@ -409,13 +533,15 @@ mod tests {
 
     #[test]
     fn output_must_be_png_or_exr_in_an_existing_directory() {
-        assert!(check_output_path(Path::new("a.png")).is_ok());
-        assert!(check_output_path(Path::new("a.EXR")).is_ok());
-        assert!(check_output_path(Path::new("a.jpg"))
+        assert!(check_output_path(Path::new("a.png"), false).is_ok());
+        assert!(check_output_path(Path::new("a.EXR"), false).is_ok());
+        assert!(check_output_path(Path::new("a.ptpart"), true).is_ok());
+        assert!(check_output_path(Path::new("a.png"), true).is_err());
+        assert!(check_output_path(Path::new("a.jpg"), false)
             .unwrap_err()
             .to_string()
             .contains(".png or .exr"));
-        let e = check_output_path(Path::new("/no/such/dir/a.png")).unwrap_err().to_string();
+        let e = check_output_path(Path::new("/no/such/dir/a.png"), false).unwrap_err().to_string();
         assert!(e.contains("does not exist"), "{e}");
     }
 }

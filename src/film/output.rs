@@ -82,6 +82,11 @@ fn check_size(path: &Path, width: u32, height: u32, len: usize) -> Result<()> {
     Ok(())
 }
 
+/// Writes `bytes` to `path` through a temporary name, like every image (see `save_atomically`).
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
+    save_atomically(path, |w| w.write_all(bytes).map_err(image::ImageError::IoError))
+}
+
 /// Encodes into `NAME.tmp-PID` beside `path`, then renames it over `path`: readers see either
 /// the old file or the complete new one, and a failure leaves no partial file behind.
 fn save_atomically(

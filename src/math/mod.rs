@@ -1,8 +1,10 @@
 //! Scalar math used by the loader, the builder and the shading code: axis-aligned boxes and rays.
 //! Vectors are `glam::Vec3` (12 bytes, no padding) so they can sit in tightly packed arrays.
 
+mod exact;
 mod ray;
 
+pub use exact::ExactRgb;
 pub use glam::{Mat4, Vec3};
 pub use ray::{Hit, Ray};
 

@@ -34,7 +34,7 @@ pub use stages::{ShadeOutputs, Surface};
 
 use crate::accel::{Accel, TraceStats};
 use crate::integrator::{Integrator, LightSet};
-use crate::math::{Hit, Vec3};
+use crate::math::{ExactRgb, Hit, Vec3};
 use crate::sampler::{DrawBatch, SamplerKind};
 use crate::scene::{Camera, Scene};
 
@@ -71,6 +71,9 @@ pub struct RenderContext<'a> {
     pub integrator: &'a Integrator,
     pub lights: &'a LightSet,
     pub spp: u32,
+    /// The samples of each pixel to take: `0..spp` for a whole render, less for a part of one
+    /// (`render::RenderConfig::samples`).
+    pub samples: std::ops::Range<u32>,
     pub light_samples: u32,
     pub max_depth: u32,
     /// Adaptive sampling: (samples per batch, tolerance), see `PixelStats::converged`.
@@ -181,7 +184,8 @@ pub struct Workspace {
 /// sampling tests.
 #[derive(Default)]
 pub struct PixelStats {
-    pub sum: Vec<Vec3>,
+    /// Exact radiance sums: any split of the samples adds up to the same bytes.
+    pub sum: Vec<ExactRgb>,
     pub lum_sum: Vec<f64>,
     pub lum_sq_sum: Vec<f64>,
     pub count: Vec<u32>,
@@ -196,7 +200,7 @@ impl PixelStats {
             v.resize(n, 0.0);
         }
         self.sum.clear();
-        self.sum.resize(n, Vec3::ZERO);
+        self.sum.resize(n, ExactRgb::default());
         self.count.clear();
         self.count.resize(n, 0);
         self.active.clear();
@@ -216,29 +220,29 @@ impl PixelStats {
     }
 }
 
-/// Renders one tile: the mean radiance of each of its pixels, row-major, into `out`, and the
-/// number of samples each pixel took into `samples`.
+/// Renders samples `ctx.samples` of one tile: the exact radiance sum of each of its pixels,
+/// row-major, into `out`, and the number of samples each pixel took into `samples`.
 pub fn render_tile(
     ctx: &RenderContext,
     tile: Tile,
     ws: &mut Workspace,
-    out: &mut [Vec3],
+    out: &mut [ExactRgb],
     samples: &mut [u32],
     stats: &mut RenderStats,
 ) {
     ws.pixels.reset(tile.pixel_count());
     let max_batch = sample_batch(ctx);
-    let mut first = 0;
-    while first < ctx.spp {
+    let mut first = ctx.samples.start;
+    while first < ctx.samples.end {
         // Batches end on multiples of the adaptive batch size, where convergence is tested.
-        let mut batch = max_batch.min(ctx.spp - first);
+        let mut batch = max_batch.min(ctx.samples.end - first);
         if let Some((every, _)) = ctx.adaptive {
             batch = batch.min(every - first % every);
         }
         trace_sample_batch(ctx, tile, first, batch, ws, stats);
         first += batch;
         if let Some((every, tolerance)) = ctx.adaptive {
-            if first % every == 0 {
+            if first.is_multiple_of(every) {
                 retire_converged_pixels(&mut ws.pixels, tolerance);
                 if !ws.pixels.active.contains(&true) {
                     break;
@@ -248,7 +252,7 @@ pub fn render_tile(
     }
     for (i, (o, n)) in out.iter_mut().zip(samples.iter_mut()).enumerate() {
         *n = ws.pixels.count[i];
-        *o = ws.pixels.sum[i] / (*n).max(1) as f32;
+        *o = ws.pixels.sum[i];
     }
 }
 
