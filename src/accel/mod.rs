@@ -21,6 +21,7 @@ use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
 
+use crate::geometry::prim;
 use crate::geometry::sphere::intersect_sphere;
 use crate::geometry::TriangleSoa;
 use crate::math::{Aabb, Hit, Ray};
@@ -38,9 +39,6 @@ pub use wide_node::{WideNode, MAX_LEAF, MAX_TRIANGLES};
 /// the binary leaves). The binary SAH makes leaves of 1.7 triangles on average; the
 /// single-ray leaf test takes 8 at once. Measured (PERF.md, "Wide BVH").
 pub const WIDE_LEAF: usize = 8;
-
-/// Sphere hits carry this bit in `Hit::prim`; the low bits are the sphere index.
-pub const SPHERE_BIT: u32 = 1 << 31;
 
 /// Which structure to build.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -250,7 +248,7 @@ impl Accel {
             stats.sphere_tests += 1;
             if let Some(t) = intersect_sphere(&r, s) {
                 r.t_max = t;
-                best = Some(Hit { t, u: 0.0, v: 0.0, prim: SPHERE_BIT | i as u32 });
+                best = Some(Hit { t, u: 0.0, v: 0.0, prim: prim::sphere(i as u32) });
             }
         }
         best
@@ -343,7 +341,7 @@ impl Accel {
                 stats.sphere_tests += 1;
                 if let Some(t) = intersect_sphere(&r, s) {
                     r.t_max = t;
-                    *best = Some(Hit { t, u: 0.0, v: 0.0, prim: SPHERE_BIT | k as u32 });
+                    *best = Some(Hit { t, u: 0.0, v: 0.0, prim: prim::sphere(k as u32) });
                 }
             }
         }

@@ -2,7 +2,7 @@
 //! the integrator.
 
 use super::super::{PathState, RayQueue, RenderContext, ShadowQueue};
-use crate::accel::SPHERE_BIT;
+use crate::geometry::prim;
 use crate::integrator::diffuse::{self, DiffuseLanes, DiffuseOutputs, LANES};
 use crate::math::{Hit, Ray, Vec3};
 use crate::sampler::DrawBatch;
@@ -32,12 +32,12 @@ pub struct Surface {
 impl Surface {
     pub fn at(scene: &Scene, ray: &Ray, hit: &Hit) -> Surface {
         let p = ray.at(hit.t);
-        if hit.prim & SPHERE_BIT != 0 {
-            let s = &scene.spheres[(hit.prim & !SPHERE_BIT) as usize];
+        if prim::is_sphere(hit.prim) {
+            let s = &scene.spheres[prim::sphere_index(hit.prim) as usize];
             let n = ((p - s.center) / s.radius).normalize_or(Vec3::Y);
             return Surface { p, ng: n, ns: n, material: s.material, prim: hit.prim, t: hit.t };
         }
-        let i = hit.prim as usize;
+        let i = prim::triangle_index(hit.prim) as usize;
         let [a, b, c] = scene.triangles[i];
         let [pa, pb, pc] = scene.triangle(i);
         let ng = (pb - pa).cross(pc - pa).normalize_or(Vec3::Y);
