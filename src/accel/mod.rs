@@ -27,6 +27,7 @@ use crate::geometry::TriangleSoa;
 use crate::math::{Aabb, Hit, Ray};
 use crate::scene::{Scene, Sphere};
 use crate::simd::{LaneWidth, Lanes, VFloat};
+use crate::{Error, Result};
 
 pub use binary_node::{binary_node, BinaryNode};
 pub use build::BuildParams;
@@ -98,11 +99,34 @@ pub struct Accel {
 }
 
 impl Accel {
+    /// Whether `scene` fits the structure: at most `MAX_TRIANGLES` triangles. The error is one
+    /// line, an [`Error::Scene`] without a path (`Error::in_scene` names the file).
+    pub fn check_limits(scene: &Scene) -> Result<()> {
+        let (n, max) = (scene.triangles.len(), MAX_TRIANGLES);
+        if n > max {
+            let message = format!("{n} triangles: at most {max} are supported");
+            return Err(Error::Scene { path: None, message });
+        }
+        Ok(())
+    }
+
+    /// [`build`](Accel::build) after [`check_limits`](Accel::check_limits): a scene too large
+    /// is an error before any work.
+    pub fn try_build(scene: &Scene, kind: AccelKind) -> Result<Accel> {
+        Accel::check_limits(scene)?;
+        Ok(Accel::build(scene, kind))
+    }
+
+    /// Panics if the scene is too large (`check_limits`; `try_build` returns the error).
     pub fn build(scene: &Scene, kind: AccelKind) -> Accel {
         Accel::build_with(scene, kind, BuildParams::default())
     }
 
+    /// Panics if the scene is too large (`check_limits`).
     pub fn build_with(scene: &Scene, kind: AccelKind, params: BuildParams) -> Accel {
+        if let Err(e) = Accel::check_limits(scene) {
+            panic!("{e}");
+        }
         let t0 = Instant::now();
         // Triangle boxes straight from the indexed mesh, in parallel (in the caller's rayon
         // pool); the corners are read again, in leaf order, for the SoA store.
@@ -144,7 +168,8 @@ impl Accel {
         accel
     }
 
-    /// The BVH over `scene`'s triangles (and its spheres, tested after them).
+    /// The BVH over `scene`'s triangles (and its spheres, tested after them). Panics if the
+    /// scene is too large (`check_limits`).
     pub fn new(scene: &Scene) -> Accel {
         Accel::build(scene, AccelKind::Bvh)
     }

@@ -50,6 +50,7 @@ pub fn run(args: &[String]) -> Result<()> {
         .map_err(|e| Error::new(format!("cannot start {} threads: {e}", a.threads)))?;
     // The build runs on the same `--threads` workers as the trace, so build_ms at 1 thread is
     // a single-threaded build.
+    Accel::check_limits(&scene).map_err(|e| e.in_scene(Some(&a.scene)))?;
     let accel = pool.install(|| Accel::build(&scene, AccelKind::Bvh));
     let build_ms = accel.build_time().as_secs_f64() * 1e3;
 
