@@ -57,7 +57,7 @@ pub enum AccelKind {
 /// - `rays`: queries (a packet counts its active lanes).
 /// - `node_tests`: ray-box tests, one per ray per box. Single-ray traversal (`intersect`,
 ///   `occluded`) counts, at every wide node it visits, one test per child box that the node
-///   holds (2 to 4; the root of a one-leaf tree holds 1), whether or not the lanes of unused
+///   holds (2 to `wide_node::ARITY` = 8; the root of a one-leaf tree holds 1), whether or not the lanes of unused
 ///   slots are computed; the scene box is not tested separately. A packet counts, at every
 ///   node it visits, one test per child box per lane active at that node (lanes that entered
 ///   its box and whose best hit is not yet nearer), not W: inactive and finished lanes cost

@@ -98,16 +98,4 @@ impl Integrator {
             }
         }
     }
-
-    /// Rays that leave the scene see black: scene lights (the sky included) are not geometry
-    /// and are reached only by light sampling (SCENE_FORMAT.md).
-    pub fn shade_miss(
-        &self,
-        _ctx: &RenderContext,
-        _depth: u32,
-        _ray: &Ray,
-        _path: u32,
-        _paths: &mut PathState,
-    ) {
-    }
 }

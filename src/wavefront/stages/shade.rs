@@ -74,7 +74,9 @@ pub fn shade(
                     let numbers = (&layout, draws.of(q));
                     ctx.integrator.shade_hit(ctx, depth, ray, s, path, paths, numbers, &mut out);
                 }
-                None => ctx.integrator.shade_miss(ctx, depth, ray, path, paths),
+                // Rays that leave the scene see black: scene lights (the sky included) are not
+                // geometry and are reached only by light sampling (SCENE_FORMAT.md).
+                None => {}
             }
         }
     }
