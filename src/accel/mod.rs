@@ -56,15 +56,15 @@ pub enum AccelKind {
 ///
 /// - `rays`: queries (a packet counts its active lanes).
 /// - `node_tests`: ray-box tests, one per ray per box. Single-ray traversal (`intersect`,
-///   `occluded`) counts, at every wide node it visits, one test per child box that the node
-///   holds (2 to `wide_node::ARITY` = 8; the root of a one-leaf tree holds 1), whether or not the lanes of unused
-///   slots are computed; the scene box is not tested separately. A packet counts, at every
-///   node it visits, one test per child box per lane active at that node (lanes that entered
-///   its box and whose best hit is not yet nearer), not W: inactive and finished lanes cost
-///   nothing in the count. A closest-hit packet of 16 rays whose lanes share direction signs
-///   first tests the node's boxes against the whole packet at once (`packet_interval`): that
-///   counts one test per child box, and then only the boxes it passes count per lane. A lane
-///   handed to single-ray fallback counts as single-ray traversal from then on.
+///   `occluded`) counts, at every wide node it visits, one test per child box that the node holds
+///   (2 to 8, `wide_node::ARITY`; the root of a one-leaf tree holds 1), whether or not the lanes of
+///   unused slots are computed; the scene box is not tested separately. A packet counts, at every
+///   node it visits, one test per child box per lane active at that node (lanes that entered its
+///   box and whose best hit is not yet nearer), not W: inactive and finished lanes cost nothing in
+///   the count. A closest-hit packet of 16 rays whose lanes share direction signs first tests the
+///   node's boxes against the whole packet at once (`packet_interval`): that counts one test per
+///   child box, and then only the boxes it passes count per lane. A lane handed to single-ray
+///   fallback counts as single-ray traversal from then on.
 /// - `triangle_tests`: ray-triangle tests. One ray against a leaf of k triangles counts k (the
 ///   8-wide SIMD test of k < 8 triangles still counts k; an any-hit ray that stops at a
 ///   blocking group of 8 counts the groups tested). A packet leaf counts, per triangle, the
@@ -446,9 +446,8 @@ impl Accel {
     {
         let mut stack = PacketStack::new();
         for (k, (r, h)) in rays.chunks(W).zip(hits.chunks_mut(W)).enumerate() {
-            // The packet after next starts loading while this one is traced. Measured (A/B,
-            // best of 5x5, one thread): primary packet8 CBbunny 1.05x, maxplanck 1.03x,
-            // packet16 maxplanck 1.02x (1.04x at two threads); shadow packets 1.00-1.01x.
+            // The packet after next starts loading while this one is traced (measured:
+            // PERF.md, "Measurements moved from doc comments").
             traverse_single::prefetch_slice(rays.get((k + 2) * W..(k + 3) * W).unwrap_or(&[]));
             let packet = RayPacket::<VFloat<W>>::from_rays(r);
             self.intersect_ray_packet::<W>(packet, fallback, &mut stack, h, stats);
