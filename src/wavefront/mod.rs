@@ -19,6 +19,10 @@
 //! vertex may queue one shadow ray per light sample (`-l` per area light), so the batch shrinks
 //! until a shadow queue holds at most `SHADOW_QUEUE_CAP` rays (8192 x 48 bytes = 384 KiB; at
 //! `-l 32` the queue used to reach 6 MiB per tile).
+//!
+//! The queues' SoA columns, the `RenderContext` and the `Surface` at a hit belong to the
+//! integrator, which writes them (`integrator::queues`, `integrator::context`); they are
+//! re-exported here. This module holds the stage loop, its tiles and its scratch space.
 
 mod stages;
 
