@@ -213,11 +213,6 @@ impl Traversal {
         }
     }
 
-    /// Whether this build can trace with this traversal.
-    pub fn available(self) -> bool {
-        true
-    }
-
     /// Packet width (1 for single rays).
     pub fn width(self) -> usize {
         match self {

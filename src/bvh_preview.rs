@@ -6,7 +6,8 @@
 
 use rayon::prelude::*;
 
-use crate::accel::{Accel, BinaryNode, TraceStats, SPHERE_BIT};
+use crate::accel::{Accel, BinaryNode, TraceStats};
+use crate::geometry::prim;
 use crate::math::{Aabb, Vec3};
 use crate::render::RenderConfig;
 use crate::scene::{Camera, Scene};
@@ -49,7 +50,7 @@ pub fn node_pixels(camera: &Camera, accel: &Accel, node: &BinaryNode) -> Vec<boo
             let ray = camera.ray_through_pixel((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
             let hit = accel.intersect(&ray, &mut TraceStats::default());
             hit.is_some_and(|h| {
-                h.prim & SPHERE_BIT == 0 && node.prims.binary_search(&h.prim).is_ok()
+                !prim::is_sphere(h.prim) && node.prims.binary_search(&h.prim).is_ok()
             })
         })
         .collect()

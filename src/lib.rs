@@ -59,18 +59,28 @@
 //!
 //! # Layout
 //!
-//! Data flows one way, and each module imports only those to its left:
+//! Data flows one way (scene file -> `scene` -> `accel` -> `wavefront` stages -> `film` -> image
+//! file), and imports run one way too: each module imports only modules before it in
 //!
 //! ```text
-//! scene file -> scene (model + COLLADA loader + camera)
-//!            -> simd (lane-width-generic f32x4 / f32x8 helpers)
-//!            -> geometry (SoA triangles, Möller-Trumbore, spheres)
-//!            -> accel (binned-SAH BVH, flat nodes, single-ray and packet traversal)
-//!            -> wavefront (generate -> extend -> shade -> shadow -> accumulate)
-//!            -> render (tiles, threads; a crop and a range of samples for a part)
-//!            -> film -> image file (PNG tone-mapped, EXR linear)
-//!            -> farm (plan of parts, .ptpart files of exact sums, the exact merge)
+//! error        the error enum and `bail!`
+//! math         Vec3, Aabb, Ray, Hit (scalar)
+//! simd         lane types and helpers
+//! sampler      PCG32, Sobol, the per-path random numbers
+//! scene        the scene model, COLLADA loader, camera (no limits of accel)
+//! procedural   generated scenes (COLLADA text)
+//! geometry     SoA triangles, Möller-Trumbore, spheres, the primitive id (`geometry::prim`)
+//! accel        binned-SAH BVH, 8-wide nodes, single-ray and packet traversal, its limits
+//! film         image output (PNG tone-mapped, EXR linear)
+//! integrator   BSDFs, lights, estimators; the render context, surface and queues they write
+//! wavefront    the stage loop: generate -> extend -> shade -> shadow -> accumulate
+//! render       tiles over threads, the render configuration; a crop and a range of samples
+//! farm         plans of parts, `.ptpart` files of exact sums, the exact merge
+//! metrics, convergence, bench, bvh_preview   tools built on whole renders
+//! cli          the binary's commands (src/main.rs)
 //! ```
+//!
+//! `.ci/module-order` checks this on every CI run.
 
 pub mod accel;
 pub mod bench;

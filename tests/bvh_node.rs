@@ -5,7 +5,8 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use pathtracer::accel::{binary_node, Accel, AccelKind, BuildParams, TraceStats, SPHERE_BIT};
+use pathtracer::accel::{binary_node, Accel, AccelKind, BuildParams, TraceStats};
+use pathtracer::geometry::prim;
 use pathtracer::math::Vec3;
 use pathtracer::scene::{collada, Camera, Scene};
 
@@ -143,7 +144,7 @@ fn near_outline(corners: &[(f32, f32); 8], x: u32, y: u32) -> bool {
 fn hits_node(scene_accel: &(Scene, Accel), camera: &Camera, prims: &[u32], x: u32, y: u32) -> bool {
     let ray = camera.ray_through_pixel(x as f32 + 0.5, y as f32 + 0.5);
     let hit = scene_accel.1.intersect(&ray, &mut TraceStats::default());
-    hit.is_some_and(|h| h.prim & SPHERE_BIT == 0 && prims.contains(&h.prim))
+    hit.is_some_and(|h| !prim::is_sphere(h.prim) && prims.contains(&h.prim))
 }
 
 #[test]

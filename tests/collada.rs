@@ -260,7 +260,8 @@ fn a_missing_file_names_the_file() {
 }
 
 /// A scene with more triangles than the acceleration structure can address is refused with
-/// a one-line error when it is validated (the loader validates every scene it returns).
+/// a one-line error before the build (the limit is the acceleration structure's, not the
+/// scene's: `Accel::check_limits`).
 #[test]
 fn too_many_triangles_is_a_clear_error() {
     let mut scene = pathtracer::scene::Scene::default();
@@ -269,7 +270,7 @@ fn too_many_triangles_is_a_clear_error() {
     let n = pathtracer::accel::MAX_TRIANGLES + 1;
     scene.triangles = vec![[0, 1, 2]; n];
     scene.triangle_materials = vec![0; n];
-    let err = scene.validate().unwrap_err().to_string();
+    let err = pathtracer::accel::Accel::check_limits(&scene).unwrap_err().to_string();
     assert!(err.contains("at most 16777216"), "{err}");
     assert!(!err.contains('\n'));
 }

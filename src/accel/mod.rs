@@ -21,11 +21,13 @@ use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
 
+use crate::geometry::prim;
 use crate::geometry::sphere::intersect_sphere;
 use crate::geometry::TriangleSoa;
 use crate::math::{Aabb, Hit, Ray};
 use crate::scene::{Scene, Sphere};
 use crate::simd::{LaneWidth, Lanes, VFloat};
+use crate::{Error, Result};
 
 pub use binary_node::{binary_node, BinaryNode};
 pub use build::BuildParams;
@@ -38,9 +40,6 @@ pub use wide_node::{WideNode, MAX_LEAF, MAX_TRIANGLES};
 /// the binary leaves). The binary SAH makes leaves of 1.7 triangles on average; the
 /// single-ray leaf test takes 8 at once. Measured (PERF.md, "Wide BVH").
 pub const WIDE_LEAF: usize = 8;
-
-/// Sphere hits carry this bit in `Hit::prim`; the low bits are the sphere index.
-pub const SPHERE_BIT: u32 = 1 << 31;
 
 /// Which structure to build.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -57,15 +56,15 @@ pub enum AccelKind {
 ///
 /// - `rays`: queries (a packet counts its active lanes).
 /// - `node_tests`: ray-box tests, one per ray per box. Single-ray traversal (`intersect`,
-///   `occluded`) counts, at every wide node it visits, one test per child box that the node
-///   holds (2 to 4; the root of a one-leaf tree holds 1), whether or not the lanes of unused
-///   slots are computed; the scene box is not tested separately. A packet counts, at every
-///   node it visits, one test per child box per lane active at that node (lanes that entered
-///   its box and whose best hit is not yet nearer), not W: inactive and finished lanes cost
-///   nothing in the count. A closest-hit packet of 16 rays whose lanes share direction signs
-///   first tests the node's boxes against the whole packet at once (`packet_interval`): that
-///   counts one test per child box, and then only the boxes it passes count per lane. A lane
-///   handed to single-ray fallback counts as single-ray traversal from then on.
+///   `occluded`) counts, at every wide node it visits, one test per child box that the node holds
+///   (2 to 8, `wide_node::ARITY`; the root of a one-leaf tree holds 1), whether or not the lanes of
+///   unused slots are computed; the scene box is not tested separately. A packet counts, at every
+///   node it visits, one test per child box per lane active at that node (lanes that entered its
+///   box and whose best hit is not yet nearer), not W: inactive and finished lanes cost nothing in
+///   the count. A closest-hit packet of 16 rays whose lanes share direction signs first tests the
+///   node's boxes against the whole packet at once (`packet_interval`): that counts one test per
+///   child box, and then only the boxes it passes count per lane. A lane handed to single-ray
+///   fallback counts as single-ray traversal from then on.
 /// - `triangle_tests`: ray-triangle tests. One ray against a leaf of k triangles counts k (the
 ///   8-wide SIMD test of k < 8 triangles still counts k; an any-hit ray that stops at a
 ///   blocking group of 8 counts the groups tested). A packet leaf counts, per triangle, the
@@ -100,11 +99,34 @@ pub struct Accel {
 }
 
 impl Accel {
+    /// Whether `scene` fits the structure: at most `MAX_TRIANGLES` triangles. The error is one
+    /// line, an [`Error::Scene`] without a path (`Error::in_scene` names the file).
+    pub fn check_limits(scene: &Scene) -> Result<()> {
+        let (n, max) = (scene.triangles.len(), MAX_TRIANGLES);
+        if n > max {
+            let message = format!("{n} triangles: at most {max} are supported");
+            return Err(Error::Scene { path: None, message });
+        }
+        Ok(())
+    }
+
+    /// [`build`](Accel::build) after [`check_limits`](Accel::check_limits): a scene too large
+    /// is an error before any work.
+    pub fn try_build(scene: &Scene, kind: AccelKind) -> Result<Accel> {
+        Accel::check_limits(scene)?;
+        Ok(Accel::build(scene, kind))
+    }
+
+    /// Panics if the scene is too large (`check_limits`; `try_build` returns the error).
     pub fn build(scene: &Scene, kind: AccelKind) -> Accel {
         Accel::build_with(scene, kind, BuildParams::default())
     }
 
+    /// Panics if the scene is too large (`check_limits`).
     pub fn build_with(scene: &Scene, kind: AccelKind, params: BuildParams) -> Accel {
+        if let Err(e) = Accel::check_limits(scene) {
+            panic!("{e}");
+        }
         let t0 = Instant::now();
         // Triangle boxes straight from the indexed mesh, in parallel (in the caller's rayon
         // pool); the corners are read again, in leaf order, for the SoA store.
@@ -146,7 +168,8 @@ impl Accel {
         accel
     }
 
-    /// The BVH over `scene`'s triangles (and its spheres, tested after them).
+    /// The BVH over `scene`'s triangles (and its spheres, tested after them). Panics if the
+    /// scene is too large (`check_limits`).
     pub fn new(scene: &Scene) -> Accel {
         Accel::build(scene, AccelKind::Bvh)
     }
@@ -250,7 +273,7 @@ impl Accel {
             stats.sphere_tests += 1;
             if let Some(t) = intersect_sphere(&r, s) {
                 r.t_max = t;
-                best = Some(Hit { t, u: 0.0, v: 0.0, prim: SPHERE_BIT | i as u32 });
+                best = Some(Hit { t, u: 0.0, v: 0.0, prim: prim::sphere(i as u32) });
             }
         }
         best
@@ -343,7 +366,7 @@ impl Accel {
                 stats.sphere_tests += 1;
                 if let Some(t) = intersect_sphere(&r, s) {
                     r.t_max = t;
-                    *best = Some(Hit { t, u: 0.0, v: 0.0, prim: SPHERE_BIT | k as u32 });
+                    *best = Some(Hit { t, u: 0.0, v: 0.0, prim: prim::sphere(k as u32) });
                 }
             }
         }
@@ -423,9 +446,8 @@ impl Accel {
     {
         let mut stack = PacketStack::new();
         for (k, (r, h)) in rays.chunks(W).zip(hits.chunks_mut(W)).enumerate() {
-            // The packet after next starts loading while this one is traced. Measured (A/B,
-            // best of 5x5, one thread): primary packet8 CBbunny 1.05x, maxplanck 1.03x,
-            // packet16 maxplanck 1.02x (1.04x at two threads); shadow packets 1.00-1.01x.
+            // The packet after next starts loading while this one is traced (measured:
+            // PERF.md, "Measurements moved from doc comments").
             traverse_single::prefetch_slice(rays.get((k + 2) * W..(k + 3) * W).unwrap_or(&[]));
             let packet = RayPacket::<VFloat<W>>::from_rays(r);
             self.intersect_ray_packet::<W>(packet, fallback, &mut stack, h, stats);

@@ -29,9 +29,8 @@ use crate::math::{Hit, Ray};
 use crate::simd::SimdF32;
 
 /// Narrowest packet that takes the interval pre-test (`packet_interval`) in closest-hit
-/// traversal. Measured (A/B, best of 5x5, primary rays, one thread): 16-ray packets CBbunny
-/// 1.15x, maxplanck 1.18x, 1M tori 1.08x; 8-wide packets 0.98x, 1.00x, 0.99x (its cost is
-/// shared by half as many rays); shadow packets 0.91x at 8 wide, so occlusion never takes it.
+/// traversal; occlusion never takes it.
+/// Measured: PERF.md, "Measurements moved from doc comments".
 pub const INTERVAL_MIN_W: usize = 16;
 
 /// Default single-ray fallback thresholds: a subtree entered by at most this many lanes is
@@ -221,9 +220,8 @@ fn entered_children<V: SimdF32>(
 }
 
 /// Starts loading a pushed child: an interior node always, a leaf's triangle block if
-/// `leaves`. Measured (A/B, packet8, best of 5x5): leaf blocks too gave tori 1M primary 1.10x
-/// and shadow 1.03x, but 0.97-0.98x on the cache-resident course scenes, so `Accel` asks for
-/// them only above `traverse_single::STREAM_LARGE_BYTES`.
+/// `leaves`: `Accel` asks for leaves only above `traverse_single::STREAM_LARGE_BYTES`.
+/// Measured: PERF.md, "Measurements moved from doc comments".
 #[inline(always)]
 fn prefetch(nodes: &[WideNode], tris: &TriangleSoa, child: u32, leaves: bool) {
     if leaves {

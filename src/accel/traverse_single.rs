@@ -26,6 +26,7 @@ use crate::simd::SimdF32;
 /// A wide tree is no deeper than the binary tree it came from, and each level pushes at most
 /// `ARITY - 1` siblings.
 const STACK: usize = (ARITY - 1) * MAX_DEPTH + 1;
+const _: () = assert!(STACK == 449 && std::mem::size_of::<Entry>() == 8);
 
 /// A ray prepared for wide box tests: reciprocal direction and the fused slab test's terms
 /// (`packet::slab_terms`) broadcast, and per axis whether the direction is negative (then the
@@ -78,8 +79,9 @@ impl WideRay {
     }
 }
 
-/// A fixed traversal stack left uninitialised: a zeroed 2.3 KiB array cost a `memset` per
-/// ray (measured below in PERF.md, "Wide BVH").
+/// A fixed traversal stack left uninitialised: `STACK` = 7 x 64 + 1 = 449 entries, 3.5 KiB of
+/// `Entry` for closest hit and 1.75 KiB of `u32` for any hit; zeroing it cost a `memset` per
+/// ray (measured in PERF.md, "Wide BVH").
 struct Stack<T: Copy> {
     items: [MaybeUninit<T>; STACK],
     len: usize,
@@ -124,12 +126,8 @@ impl Entry {
 
 /// Starts loading node `child` (all its cache lines) if it is one, while the ray descends into
 /// a nearer sibling: on the 1M-triangle tori scene most nodes below the top levels miss the
-/// caches, and a pushed child would otherwise be loaded only when popped. Measured (PERF.md,
-/// "Large scenes" and "Triangle blocks"): prefetching every entered child gave +7 % diffuse
-/// and +8 % primary rays per second there, no change on the course scenes, and 9 % more
-/// instructions per maxplanck diffuse ray (1298 -> 1423); prefetching only the pushed ones
-/// costs 1 % (1310) and measured the same rays per second. Prefetching entered leaves'
-/// triangle blocks was within the noise.
+/// caches, and a pushed child would otherwise be loaded only when popped.
+/// Measured: PERF.md, "Measurements moved from doc comments".
 #[inline(always)]
 pub(super) fn prefetch_node(nodes: &[WideNode], child: u32) {
     if child & LEAF_BIT == 0 {
@@ -315,9 +313,8 @@ pub fn occluded(nodes: &[WideNode], tris: &TriangleSoa, ray: &Ray, stats: &mut T
 ///
 /// The farthest entered child is visited first. Occlusion rays start on a surface, and the
 /// boxes around their origin (entered at t_min, so nearest) hold the surface they leave, which
-/// rarely blocks them; what blocks them lies farther along. Measured (PERF.md, "Wide BVH"):
-/// maxplanck shadow 66.8 -> 41.6 node tests per ray and about 1.7x the rays per second
-/// against slot order; nearest-first was worse than slot order (83.5 tests per ray).
+/// rarely blocks them; what blocks them lies farther along.
+/// Measured: PERF.md, "Measurements moved from doc comments".
 pub fn occluded_subtree(
     nodes: &[WideNode],
     tris: &TriangleSoa,
@@ -358,11 +355,8 @@ pub fn occluded_subtree(
 /// else `STREAM_LARGE`, each ray's next node or leaf prefetched as soon as it is known. Each
 /// ray in flight adds a stack and a prepared ray to the working set and mixes the branch
 /// history of the traversal loop, and each prefetch costs instructions; on a cache-resident
-/// scene that costs more than the overlapped latency gives back. Measured (A/B, best of 5x5,
-/// diffuse rays; PERF.md, "Rays in flight"): against one ray at a time, 2 in flight CBbunny
-/// 1.02x, maxplanck 1.04x, 1M tori 1.12x, and 4 in flight 0.91x, 1.06x, 1.17x; prefetching
-/// with 4 in flight 0.94x and 0.88x on CBbunny and maxplanck, 1.08x on the tori, where 8 in
-/// flight then gave 1.14x over 4 and 16 another 1.03x.
+/// scene that costs more than the overlapped latency gives back.
+/// Measured: PERF.md, "Measurements moved from doc comments".
 pub const STREAM_SMALL: usize = 2;
 pub const STREAM_LARGE: usize = 8;
 pub const STREAM_LARGE_BYTES: usize = 16 << 20;
@@ -536,9 +530,8 @@ impl AnyWalk {
 
 /// Whether each of `rays` is blocked (`blocked[i]` answers `rays[i]`), the same as `occluded`
 /// ray by ray, with `K` rays in flight at once and their next node or leaf prefetched
-/// (`intersect_stream`). Its scheduling loop is `intersect_stream`'s: one generic driver over
-/// a walk trait measured 0.95-0.99x on the 1M tori's shadow rays (A/B, best of 5x5), so each
-/// stream keeps its own copy.
+/// (`intersect_stream`). Its scheduling loop is `intersect_stream`'s, copied: one generic
+/// driver over a walk trait was slower (PERF.md, "Measurements moved from doc comments").
 pub fn occluded_stream<const K: usize>(
     nodes: &[WideNode],
     tris: &TriangleSoa,

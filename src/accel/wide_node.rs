@@ -11,7 +11,7 @@ pub const MAX_LEAF: usize = 8;
 /// four bits above them.
 const FIRST_BITS: u32 = 27;
 
-/// Most triangles a scene may have (16,777,216; `Scene::validate` refuses more). Leaf
+/// Most triangles a scene may have (16,777,216; `Accel::check_limits` refuses more). Leaf
 /// references hold slot indices below `2^FIRST_BITS`, and every 8-slot block holds at least
 /// one triangle (`build::pack_leaves` opens a block for a leaf), so `2^FIRST_BITS / 8`
 /// triangles always fit. (Packing measures about 1.24 slots per triangle, so the bound is

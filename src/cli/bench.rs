@@ -50,6 +50,7 @@ pub fn run(args: &[String]) -> Result<()> {
         .map_err(|e| Error::new(format!("cannot start {} threads: {e}", a.threads)))?;
     // The build runs on the same `--threads` workers as the trace, so build_ms at 1 thread is
     // a single-threaded build.
+    Accel::check_limits(&scene).map_err(|e| e.in_scene(Some(&a.scene)))?;
     let accel = pool.install(|| Accel::build(&scene, AccelKind::Bvh));
     let build_ms = accel.build_time().as_secs_f64() * 1e3;
 
@@ -174,11 +175,7 @@ fn parse(args: &[String]) -> Result<BenchArgs> {
             "--rays-in" => a.rays_in = Some(PathBuf::from(value("--rays-in")?)),
             "--rays-out" => a.rays_out = Some(PathBuf::from(value("--rays-out")?)),
             "--traversal" => {
-                let t = Traversal::parse(value("--traversal")?)?;
-                if !t.available() {
-                    bail!("bench: --traversal {} is not available in this build", t.name());
-                }
-                a.traversals.push(t);
+                a.traversals.push(Traversal::parse(value("--traversal")?)?);
             }
             "--threads" => {
                 a.threads = parse_in_range("--threads", value("--threads")?, 1, 1024)? as usize
@@ -206,7 +203,7 @@ fn parse(args: &[String]) -> Result<BenchArgs> {
         bail!("bench: --rays-out writes generated rays; it cannot be combined with --rays-in");
     }
     if a.traversals.is_empty() {
-        a.traversals = Traversal::ALL.into_iter().filter(|t| t.available()).collect();
+        a.traversals = Traversal::ALL.to_vec();
     }
     Ok(a)
 }

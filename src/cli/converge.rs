@@ -82,6 +82,7 @@ pub fn run(args: &[String]) -> Result<()> {
     }
 
     let scene = scene::collada::load(&cli.scene)?;
+    Accel::check_limits(&scene).map_err(|e| e.in_scene(Some(&cli.scene)))?;
     for w in scene.warnings.iter().chain(&lighting_warnings(&scene, cli.config.integrator)) {
         errln!("warning: {}: {w}", cli.scene.display());
     }

@@ -112,6 +112,7 @@ fn render_to_file(cli: &Cli) -> Result<()> {
 
     let t0 = Instant::now();
     let scene = scene::collada::load(&cli.scene)?;
+    Accel::check_limits(&scene).map_err(|e| e.in_scene(Some(&cli.scene)))?;
     report.print(format_args!(
         "[PathTracer] Collecting primitives... Done! ({:.4} sec)\n",
         t0.elapsed().as_secs_f64()

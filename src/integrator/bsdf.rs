@@ -16,12 +16,6 @@ pub struct BsdfSample {
     pub pdf: f32,
 }
 
-impl BsdfSample {
-    pub fn is_delta(&self) -> bool {
-        self.pdf == 0.0
-    }
-}
-
 /// Whether light sampling can ever help at this material (delta lobes have f = 0 almost
 /// everywhere, so next-event estimation is skipped for them).
 pub fn has_smooth_lobe(m: &Material) -> bool {

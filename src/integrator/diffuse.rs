@@ -13,11 +13,11 @@ use std::f32::consts::{FRAC_1_PI, TAU};
 
 use super::lights::TriangleEmitter;
 use super::path::{DirectLighting, DrawLayout, RR_START_DEPTH};
+use super::{PathState, RenderContext, ShadeOutputs, Surface};
 use crate::math::{Ray, Vec3, COS_COEFFS, SIN_COEFFS};
 use crate::sampler::DrawBatch;
 use crate::scene::Light;
 use crate::simd::{SimdF32, VFloat};
-use crate::wavefront::{PathState, RenderContext, ShadeOutputs, Surface};
 
 /// Vertices shaded together.
 pub const LANES: usize = 8;

@@ -9,6 +9,7 @@
 
 use std::f32::consts::PI;
 
+use crate::geometry::prim;
 use crate::math::Vec3;
 use crate::scene::{Light, Material, Scene};
 
@@ -193,10 +194,10 @@ impl LightSet {
     /// The solid-angle pdf with which `sample_emitter` would have chosen the point that a ray
     /// from a shading point hit at distance `dist`, with cosine `cos_l` at the emitter.
     pub fn emitter_pdf(&self, scene: &Scene, prim: u32, dist: f32, cos_l: f32) -> f32 {
-        let e = if prim & crate::accel::SPHERE_BIT != 0 {
-            Emitter::Sphere(prim & !crate::accel::SPHERE_BIT)
+        let e = if prim::is_sphere(prim) {
+            Emitter::Sphere(prim::sphere_index(prim))
         } else {
-            Emitter::Triangle(prim)
+            Emitter::Triangle(prim::triangle_index(prim))
         };
         self.emitter_pick_pdf(scene, e) * dist * dist / (emitter_area(scene, e) * cos_l.max(1e-12))
     }

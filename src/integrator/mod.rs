@@ -1,18 +1,26 @@
 //! Integrators are hooks called by the wavefront's shade stage: given a hit (or a miss) they add
 //! radiance to the path and may queue continuation rays, shadow rays and emission probes. They
 //! never trace rays themselves, so every integrator shares the same queues and traversal.
+//!
+//! What they read and write is defined here, before the wavefront that drives them:
+//! `context.rs` (`RenderContext`, `Surface` at a hit, `ShadeOutputs`: the queues shading
+//! appends to) and `queues.rs` (the SoA columns of the path state and the ray queues). The
+//! wavefront re-exports them and owns only the stage loop and its scratch space.
 
 pub mod bsdf;
+mod context;
 pub mod diffuse;
 pub mod lights;
 mod path;
+mod queues;
 
+pub use context::{RenderContext, ShadeOutputs, Surface};
 pub use lights::LightSet;
 pub use path::{DirectLighting, DrawLayout};
+pub use queues::{PathState, RayQueue, ShadowQueue};
 
 use crate::math::{Ray, Vec3};
 use crate::sampler::DrawBatch;
-use crate::wavefront::{PathState, RenderContext, ShadeOutputs, Surface};
 
 /// The closed set of integrators.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -89,17 +97,5 @@ impl Integrator {
                 path::shade_hit(direct, ctx, depth, ray, surface, path, paths, numbers, out)
             }
         }
-    }
-
-    /// Rays that leave the scene see black: scene lights (the sky included) are not geometry
-    /// and are reached only by light sampling (SCENE_FORMAT.md).
-    pub fn shade_miss(
-        &self,
-        _ctx: &RenderContext,
-        _depth: u32,
-        _ray: &Ray,
-        _path: u32,
-        _paths: &mut PathState,
-    ) {
     }
 }

@@ -16,10 +16,10 @@
 
 use super::bsdf::{self, UNIFORM_HEMISPHERE_PDF};
 use super::lights::{sample_scene_light, LightSample};
+use super::{PathState, RenderContext, ShadeOutputs, Surface};
 use crate::math::{orthonormal_basis, Ray, Vec3};
 use crate::sampler::{Decision, DrawBatch};
 use crate::scene::Material;
-use crate::wavefront::{PathState, RenderContext, ShadeOutputs, Surface};
 
 /// How direct light is estimated at each path vertex.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -25,8 +25,8 @@ impl Ray {
     }
 }
 
-/// The closest hit found so far. `prim` is a primitive id as defined by `accel::PrimId`
-/// (a scene triangle index, or a sphere index with the sphere bit set); `u`, `v` are the
+/// The closest hit found so far. `prim` is a primitive id as defined by `geometry::prim`
+/// (a scene triangle index, or a sphere index with `SPHERE_BIT` set); `u`, `v` are the
 /// barycentric coordinates of vertices 1 and 2 for triangles (unused for spheres).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Hit {

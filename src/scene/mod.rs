@@ -83,7 +83,8 @@ impl Scene {
     }
 
     /// Checks the invariants every consumer relies on: indices in range, finite numbers.
-    /// The loader calls this last, so a `Scene` from the loader is always valid.
+    /// The loader calls this last, so a `Scene` from the loader is always valid. Limits of
+    /// the acceleration structure are its own (`Accel::try_build`).
     pub fn validate(&self) -> crate::Result<()> {
         let n = self.positions.len() as u32;
         if self.normals.len() != self.positions.len() {
@@ -91,12 +92,6 @@ impl Scene {
         }
         if self.triangle_materials.len() != self.triangles.len() {
             crate::bail!("material list does not match the triangle list");
-        }
-        // The acceleration structure's limit, checked here so that a scene too large for it is
-        // a clear error at load time rather than a failure during the build.
-        let max = crate::accel::MAX_TRIANGLES;
-        if self.triangles.len() > max {
-            crate::bail!("{} triangles: at most {max} are supported", self.triangles.len());
         }
         if let Some(p) = self.positions.iter().find(|p| !p.is_finite()) {
             crate::bail!("vertex position {p} is not finite");

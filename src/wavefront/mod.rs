@@ -25,18 +25,20 @@
 //! vertex may queue one shadow ray per light sample (`-l` per area light), so the batch shrinks
 //! until a shadow queue holds at most `SHADOW_QUEUE_CAP` rays (8192 x 48 bytes = 384 KiB; at
 //! `-l 32` the queue used to reach 6 MiB per tile).
+//!
+//! The queues' SoA columns, the `RenderContext` and the `Surface` at a hit belong to the
+//! integrator, which writes them (`integrator::queues`, `integrator::context`); they are
+//! re-exported here. This module holds the stage loop, its tiles and its scratch space.
 
-mod queues;
 mod stages;
 
-pub use queues::{PathState, RayQueue, ShadowQueue};
-pub use stages::{ShadeOutputs, Surface};
+pub use crate::integrator::{
+    PathState, RayQueue, RenderContext, ShadeOutputs, ShadowQueue, Surface,
+};
 
-use crate::accel::{Accel, TraceStats};
-use crate::integrator::{Integrator, LightSet};
-use crate::math::{ExactRgb, Hit, Vec3};
-use crate::sampler::{DrawBatch, SamplerKind};
-use crate::scene::{Camera, Scene};
+use crate::accel::TraceStats;
+use crate::math::{ExactRgb, Hit};
+use crate::sampler::DrawBatch;
 
 /// Tile side in pixels.
 pub const TILE: u32 = 16;
@@ -61,52 +63,6 @@ fn sample_batch(ctx: &RenderContext) -> u32 {
     let per_vertex = sampled.max(hemisphere).max(1);
     let pixels = TILE * TILE;
     (SHADOW_QUEUE_CAP / pixels.saturating_mul(per_vertex)).clamp(1, SAMPLE_BATCH)
-}
-
-/// What every stage reads: immutable for the whole render.
-pub struct RenderContext<'a> {
-    pub scene: &'a Scene,
-    pub accel: &'a Accel,
-    pub camera: &'a Camera,
-    pub integrator: &'a Integrator,
-    pub lights: &'a LightSet,
-    pub spp: u32,
-    /// The samples of each pixel to take: `0..spp` for a whole render, less for a part of one
-    /// (`render::RenderConfig::samples`).
-    pub samples: std::ops::Range<u32>,
-    pub light_samples: u32,
-    pub max_depth: u32,
-    /// Adaptive sampling: (samples per batch, tolerance), see `PixelStats::converged`.
-    pub adaptive: Option<(u32, f32)>,
-    pub seed: u64,
-    pub sampler: SamplerKind,
-    /// Packets for coherent queues (see `stages::Coherence`); `false`: single rays only.
-    pub packets: bool,
-    /// Diffuse vertices in SIMD lanes where the integrator allows it (`stages::shade`).
-    pub shading_lanes: bool,
-    /// Smallest offset for spawned rays: 1e-5 of the scene's bounding-box diagonal.
-    pub scene_epsilon: f32,
-}
-
-impl RenderContext<'_> {
-    /// How far a ray spawned at `p` must start from the surface to clear its own rounding
-    /// error. A Möller-Trumbore hit point is off by at most about gamma_7 |p| ~ 3.5 ulps of its
-    /// largest coordinate (pbrt-v4, 6.8), so the offset is 8 ulps of |p|, and never less than
-    /// 1e-5 of the scene's diagonal. Both scale with the scene, so moving a scene far from the
-    /// origin or rescaling it changes nothing beyond rounding (tests/stability.rs).
-    #[inline]
-    pub fn ray_epsilon(&self, p: Vec3) -> f32 {
-        const ULPS: f32 = 8.0 * f32::EPSILON;
-        (p.abs().max_element() * ULPS).max(self.scene_epsilon)
-    }
-
-    /// A spawn point for a ray leaving `p` in direction `dir`: pushed off the surface along the
-    /// geometric normal `ng`, to the side the ray leaves through.
-    #[inline]
-    pub fn offset_origin(&self, p: Vec3, ng: Vec3, dir: Vec3) -> Vec3 {
-        let side = if ng.dot(dir) >= 0.0 { 1.0 } else { -1.0 };
-        p + (side * self.ray_epsilon(p)) * ng
-    }
 }
 
 /// Rays traced, by kind, and the traversal work they caused.
@@ -295,7 +251,7 @@ fn trace_sample_batch(
         ws.next_rays.clear();
         ws.shadow.clear();
         ws.probes.clear();
-        let queues = stages::ShadeOutputs {
+        let queues = ShadeOutputs {
             next: &mut ws.next_rays,
             shadow: &mut ws.shadow,
             probes: &mut ws.probes,

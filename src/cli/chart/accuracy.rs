@@ -123,6 +123,7 @@ fn run_with(args: &[String]) -> Result<(), String> {
         None => Vec::new(),
     };
     let scene = scene::collada::load(&scene_path).map_err(|e| e.to_string())?;
+    Accel::check_limits(&scene).map_err(|e| e.in_scene(Some(&scene_path)).to_string())?;
     let accel = Accel::build(&scene, AccelKind::Bvh);
     let name = scene_path.file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned());
 

@@ -18,10 +18,8 @@ pub enum Coherence {
 
 impl Coherence {
     /// Camera rays (depth 0) are coherent, and first bounces (depth 1) unless the structure
-    /// outgrows the caches (measured, PERF.md "Whole renders": packets at depth 1 took 0.93-1.0x
-    /// the time of streams on the course scenes and 1.02x on the 1M tori; packets at every depth
-    /// 0.95x on CBbunny but 1.13x on the tori). `packets: false` treats every queue as
-    /// incoherent (single rays throughout).
+    /// outgrows the caches (measured: PERF.md, "Measurements moved from doc comments").
+    /// `packets: false` treats every queue as incoherent (single rays throughout).
     pub fn of_depth(depth: u32, packets: bool, large_structure: bool) -> Coherence {
         if packets && (depth == 0 || (depth == 1 && !large_structure)) {
             Coherence::Coherent

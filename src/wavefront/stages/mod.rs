@@ -9,5 +9,5 @@ mod shadow;
 pub use accumulate::accumulate;
 pub use extend::{extend, Coherence};
 pub use generate::generate_camera_rays;
-pub use shade::{shade, ShadeOutputs, ShadeScratch, Surface};
+pub use shade::{shade, ShadeScratch};
 pub use shadow::{trace_emission_probes, trace_shadow_rays};

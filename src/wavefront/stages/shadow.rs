@@ -1,8 +1,7 @@
 //! Stage 4: any-hit queries for the shadow-ray queue; unblocked rays deliver their radiance.
 
-use super::super::{PathState, RenderContext, ShadowQueue};
+use super::super::{PathState, RenderContext, ShadowQueue, Surface};
 use super::extend::{Coherence, PACKET};
-use super::Surface;
 use crate::accel::TraceStats;
 use crate::math::Vec3;
 

@@ -1,4 +1,4 @@
-//! The SoA arrays the stages pass between each other.
+//! The SoA arrays the wavefront's stages pass between each other, and the integrator writes.
 //!
 //! Path state is stored column by column (one `Vec` per field) so a stage touches only the
 //! fields it needs. Queue entries hold a whole `Ray` record (32 bytes, read whole by traversal)

@@ -1,0 +1,97 @@
+//! What the integrator reads and writes while the wavefront's shade stage calls it: the
+//! render-wide context, the surface at a hit, and the queues it appends to (the queues' SoA
+//! columns are in `queues`). The wavefront owns the stage loop and re-exports these.
+
+use super::{Integrator, LightSet, RayQueue, ShadowQueue};
+use crate::accel::Accel;
+use crate::geometry::prim;
+use crate::math::{Hit, Ray, Vec3};
+use crate::sampler::SamplerKind;
+use crate::scene::{Camera, Scene};
+
+/// What every stage reads: immutable for the whole render.
+pub struct RenderContext<'a> {
+    pub scene: &'a Scene,
+    pub accel: &'a Accel,
+    pub camera: &'a Camera,
+    pub integrator: &'a Integrator,
+    pub lights: &'a LightSet,
+    pub spp: u32,
+    /// The samples of each pixel to take: `0..spp` for a whole render, less for a part of one
+    /// (`render::RenderConfig::samples`).
+    pub samples: std::ops::Range<u32>,
+    pub light_samples: u32,
+    pub max_depth: u32,
+    /// Adaptive sampling: (samples per batch, tolerance), see `PixelStats::converged`.
+    pub adaptive: Option<(u32, f32)>,
+    pub seed: u64,
+    pub sampler: SamplerKind,
+    /// Packets for coherent queues (see `stages::Coherence`); `false`: single rays only.
+    pub packets: bool,
+    /// Diffuse vertices in SIMD lanes where the integrator allows it (`stages::shade`).
+    pub shading_lanes: bool,
+    /// Smallest offset for spawned rays: 1e-5 of the scene's bounding-box diagonal.
+    pub scene_epsilon: f32,
+}
+
+impl RenderContext<'_> {
+    /// How far a ray spawned at `p` must start from the surface to clear its own rounding
+    /// error. A Möller-Trumbore hit point is off by at most about gamma_7 |p| ~ 3.5 ulps of its
+    /// largest coordinate (pbrt-v4, 6.8), so the offset is 8 ulps of |p|, and never less than
+    /// 1e-5 of the scene's diagonal. Both scale with the scene, so moving a scene far from the
+    /// origin or rescaling it changes nothing beyond rounding (tests/stability.rs).
+    #[inline]
+    pub fn ray_epsilon(&self, p: Vec3) -> f32 {
+        const ULPS: f32 = 8.0 * f32::EPSILON;
+        (p.abs().max_element() * ULPS).max(self.scene_epsilon)
+    }
+
+    /// A spawn point for a ray leaving `p` in direction `dir`: pushed off the surface along the
+    /// geometric normal `ng`, to the side the ray leaves through.
+    #[inline]
+    pub fn offset_origin(&self, p: Vec3, ng: Vec3, dir: Vec3) -> Vec3 {
+        let side = if ng.dot(dir) >= 0.0 { 1.0 } else { -1.0 };
+        p + (side * self.ray_epsilon(p)) * ng
+    }
+}
+
+/// Where the integrator writes the work it creates.
+pub struct ShadeOutputs<'q> {
+    pub next: &'q mut RayQueue,
+    pub shadow: &'q mut ShadowQueue,
+    pub probes: &'q mut ShadowQueue,
+}
+
+/// What shading needs to know about a hit point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Surface {
+    pub p: Vec3,
+    /// Geometric normal (unit), as wound for triangles, outward for spheres.
+    pub ng: Vec3,
+    /// Shading normal (unit): interpolated vertex normals for triangles.
+    pub ns: Vec3,
+    pub material: u32,
+    /// The primitive hit (`Hit::prim`) and the ray parameter of the hit.
+    pub prim: u32,
+    pub t: f32,
+}
+
+impl Surface {
+    pub fn at(scene: &Scene, ray: &Ray, hit: &Hit) -> Surface {
+        let p = ray.at(hit.t);
+        if prim::is_sphere(hit.prim) {
+            let s = &scene.spheres[prim::sphere_index(hit.prim) as usize];
+            let n = ((p - s.center) / s.radius).normalize_or(Vec3::Y);
+            return Surface { p, ng: n, ns: n, material: s.material, prim: hit.prim, t: hit.t };
+        }
+        let i = prim::triangle_index(hit.prim) as usize;
+        let [a, b, c] = scene.triangles[i];
+        let [pa, pb, pc] = scene.triangle(i);
+        let ng = (pb - pa).cross(pc - pa).normalize_or(Vec3::Y);
+        let w = 1.0 - hit.u - hit.v;
+        let n = &scene.normals;
+        let ns =
+            (w * n[a as usize] + hit.u * n[b as usize] + hit.v * n[c as usize]).normalize_or(ng);
+        Surface { p, ng, ns, material: scene.triangle_materials[i], prim: hit.prim, t: hit.t }
+    }
+}
