@@ -1,6 +1,7 @@
 //! The render driver: scene + accel + config -> linear image, with statistics and progress.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
@@ -106,38 +107,52 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         .num_threads(config.threads)
         .build()
         .map_err(|e| crate::Error::new(format!("cannot start {} threads: {e}", config.threads)))?;
+    // The image buffers first, so that an image too large for memory is an error before any
+    // work, and each tile is copied in as it finishes (never the whole image twice).
+    let n = config.width as usize * config.height as usize;
+    let size = format!("the {}x{} image", config.width, config.height);
+    let image = Mutex::new(Image {
+        pixels: crate::error::try_filled_vec(n, Vec3::ZERO, &size)?,
+        samples: crate::error::try_filled_vec(n, 0, &size)?,
+        stats: RenderStats::default(),
+    });
     let tiles = wavefront::tiles(config.width, config.height);
     let done = AtomicUsize::new(0);
     let start = Instant::now();
-    let (results, time): (Vec<TileResult>, Duration) = std::thread::scope(|s| {
+    let time = std::thread::scope(|s| {
         // A progress line only makes sense on a terminal; logs and pipes get the final stats.
         if config.progress && std::io::IsTerminal::is_terminal(&std::io::stderr()) {
             s.spawn(|| report_progress(&done, tiles.len(), start));
         }
-        let results = pool.install(|| {
-            tiles
-                .par_iter()
-                .map_init(Workspace::default, |ws, &tile| {
-                    let r = render_one_tile(&ctx, tile, ws);
-                    done.fetch_add(1, Ordering::Relaxed);
-                    r
-                })
-                .collect()
+        pool.install(|| {
+            tiles.par_iter().for_each_init(Workspace::default, |ws, &tile| {
+                let r = render_one_tile(&ctx, tile, ws);
+                image.lock().unwrap_or_else(|e| e.into_inner()).add_tile(config.width, &tile, &r);
+                done.fetch_add(1, Ordering::Relaxed);
+            })
         });
         let time = start.elapsed();
         done.store(usize::MAX, Ordering::Relaxed);
-        (results, time)
+        time
     });
-
-    let n = (config.width * config.height) as usize;
-    let (mut pixels, mut samples) = (vec![Vec3::ZERO; n], vec![0; n]);
-    let mut stats = RenderStats::default();
-    for (tile, r) in tiles.iter().zip(&results) {
-        copy_tile(&mut pixels, config.width, tile, &r.pixels);
-        copy_tile(&mut samples, config.width, tile, &r.samples);
-        stats.add(&r.stats);
-    }
+    let Image { pixels, samples, stats } = image.into_inner().unwrap_or_else(|e| e.into_inner());
     Ok(RenderOutput { width: config.width, height: config.height, pixels, samples, stats, time })
+}
+
+/// The image being assembled from finished tiles.
+struct Image {
+    pixels: Vec<Vec3>,
+    samples: Vec<u32>,
+    stats: RenderStats,
+}
+
+impl Image {
+    fn add_tile(&mut self, width: u32, tile: &Tile, r: &TileResult) {
+        copy_tile(&mut self.pixels, width, tile, &r.pixels);
+        copy_tile(&mut self.samples, width, tile, &r.samples);
+        // Integer counts: the sum does not depend on the order tiles finish in.
+        self.stats.add(&r.stats);
+    }
 }
 
 struct TileResult {

@@ -40,6 +40,7 @@ Our options:
   --sampler KIND      sobol: Owen-scrambled Sobol points per decision (default);
                       independent: independent uniform numbers
   --no-bvh            test every primitive for every ray (slow; for small scenes)
+  --max-scene-bytes N refuse a scene file larger than N bytes (default 1073741824, 1 GiB)
   --info              print what the scene holds and exit
   --quiet             no progress line
   -h, --help          this help
@@ -54,6 +55,8 @@ pub(super) struct Cli {
     pub scene: PathBuf,
     pub output: Option<PathBuf>,
     pub info: bool,
+    /// The largest scene file read (`--max-scene-bytes`).
+    pub max_scene_bytes: u64,
     hemisphere: bool,
     pub accel: AccelKind,
     pub config: RenderConfig,
@@ -74,7 +77,7 @@ pub fn run(args: &[String]) -> Result<()> {
 }
 
 fn print_info(cli: &Cli) -> Result<()> {
-    let scene = scene::collada::load(&cli.scene)?;
+    let scene = scene::collada::load_with_limit(&cli.scene, cli.max_scene_bytes)?;
     out!("{}", scene::info::summary(&scene, cli.config.width, cli.config.height))
 }
 
@@ -97,7 +100,7 @@ fn render_to_file(cli: &Cli) -> Result<()> {
     report.print(format_args!("[PathTracer] Rendering using {threads} threads\n"));
 
     let t0 = Instant::now();
-    let scene = scene::collada::load(&cli.scene)?;
+    let scene = scene::collada::load_with_limit(&cli.scene, cli.max_scene_bytes)?;
     report.print(format_args!(
         "[PathTracer] Collecting primitives... Done! ({:.4} sec)\n",
         t0.elapsed().as_secs_f64()
@@ -184,6 +187,7 @@ pub(super) fn parse_args(args: &[String]) -> Result<Cli> {
         scene: PathBuf::new(),
         output: None,
         info: false,
+        max_scene_bytes: scene::collada::DEFAULT_MAX_SCENE_BYTES,
         hemisphere: false,
         accel: AccelKind::Bvh,
         config: RenderConfig {
@@ -232,6 +236,10 @@ pub(super) fn parse_args(args: &[String]) -> Result<Cli> {
                 })?;
             }
             "--no-bvh" => cli.accel = AccelKind::BruteForce,
+            "--max-scene-bytes" => {
+                cli.max_scene_bytes =
+                    parse_byte_count("--max-scene-bytes", value("--max-scene-bytes")?)?
+            }
             "--info" => cli.info = true,
             "--quiet" | "-q" => cli.config.progress = false,
             a if a.starts_with('-') && a.len() > 1 => bail!("unknown option '{a}' (see --help)"),
@@ -250,6 +258,13 @@ pub(super) fn parse_args(args: &[String]) -> Result<Cli> {
         cli.config.integrator = Integrator::Path(DirectLighting::Hemisphere);
     }
     Ok(cli)
+}
+
+fn parse_byte_count(flag: &str, text: &str) -> Result<u64> {
+    match parse_number::<u64>(flag, text)? {
+        0 => bail!("{flag}: expected a positive number of bytes, got 0"),
+        n => Ok(n),
+    }
 }
 
 fn parse_integrator(name: &str) -> Result<Integrator> {
@@ -349,6 +364,8 @@ mod tests {
             ("-s 4", "no scene file"),
             ("--shading foo x.dae", "unknown integrator"),
             ("-H --shading mis x.dae", "conflicts"),
+            ("--max-scene-bytes 0 x.dae", "--max-scene-bytes: expected a positive"),
+            ("--max-scene-bytes -1 x.dae", "--max-scene-bytes: '-1' is not a valid number"),
         ] {
             let err = parse_args(&args(a)).unwrap_err().to_string();
             assert!(err.contains(want), "{a}: got '{err}', want '{want}'");

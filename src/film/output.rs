@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 
 use image::{ImageFormat, Rgb32FImage, RgbImage};
 
+use crate::error::try_filled_vec;
 use crate::math::Vec3;
 use crate::{bail, Error, Result};
 
@@ -20,14 +21,15 @@ pub fn write_image(path: &Path, width: u32, height: u32, pixels: &[Vec3]) -> Res
     check_size(path, width, height, pixels.len())?;
     match extension(path).as_deref() {
         Some("png") => {
-            let mut img = RgbImage::new(width, height);
+            let mut img = display_image(width, height)?;
             for (p, l) in img.pixels_mut().zip(pixels) {
                 *p = image::Rgb([tone_map(l.x), tone_map(l.y), tone_map(l.z)]);
             }
             save_atomically(path, |w| img.write_to(w, ImageFormat::Png))
         }
         Some("exr") => {
-            let mut img = Rgb32FImage::new(width, height);
+            let buffer = try_filled_vec(3 * pixels.len(), 0.0, &image_name(width, height))?;
+            let mut img = Rgb32FImage::from_raw(width, height, buffer).expect("sized to fit");
             for (p, l) in img.pixels_mut().zip(pixels) {
                 *p = image::Rgb(l.to_array());
             }
@@ -53,11 +55,22 @@ pub fn write_rate_image(
     max_samples: u32,
 ) -> Result<()> {
     check_size(path, width, height, samples.len())?;
-    let mut img = RgbImage::new(width, height);
+    let mut img = display_image(width, height)?;
     for (p, &n) in img.pixels_mut().zip(samples) {
         *p = image::Rgb(ramp(n as f32 / max_samples.max(1) as f32));
     }
     save_atomically(path, |w| img.write_to(w, ImageFormat::Png))
+}
+
+/// A black 8-bit image; its size is the user's (`-r`), so a failed allocation is an error.
+fn display_image(width: u32, height: u32) -> Result<RgbImage> {
+    let len = 3 * width as usize * height as usize;
+    let buffer = try_filled_vec(len, 0u8, &image_name(width, height))?;
+    Ok(RgbImage::from_raw(width, height, buffer).expect("sized to fit"))
+}
+
+fn image_name(width: u32, height: u32) -> String {
+    format!("the {width}x{height} output image")
 }
 
 /// Blue (0) -> green (0.5) -> red (1).

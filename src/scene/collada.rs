@@ -4,19 +4,69 @@
 //! Every failure is one line naming what is wrong; `load` prefixes it with the file name.
 
 use std::collections::HashMap;
+use std::io::Read;
 use std::path::Path;
 
 use glam::{Mat4, Vec3, Vec4};
 use roxmltree::{Document, Node};
 
-use super::{CameraDesc, Light, Material, Scene, Sphere};
+use super::{CameraDesc, Light, Material, Scene, Sphere, MAX_TRIANGLES};
 use crate::{bail, Error, Result};
 
-/// Reads and parses a scene file.
+/// The largest scene file [`load`] reads: 1 GiB, far above any course scene (the largest is
+/// 14 MB) and below what parsing it would need in memory on a small machine.
+pub const DEFAULT_MAX_SCENE_BYTES: u64 = 1 << 30;
+
+/// Reads and parses a scene file of at most [`DEFAULT_MAX_SCENE_BYTES`].
 pub fn load(path: &Path) -> Result<Scene> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| Error::new(format!("{}: cannot read: {e}", path.display())))?;
+    load_with_limit(path, DEFAULT_MAX_SCENE_BYTES)
+}
+
+/// Reads and parses a scene file of at most `max_bytes` bytes: a larger file, or a device or
+/// pipe that delivers more (`/dev/zero`), is an error once the limit is reached, never an
+/// unbounded read.
+pub fn load_with_limit(path: &Path, max_bytes: u64) -> Result<Scene> {
+    let text = read_capped(path, max_bytes).map_err(|e| e.context(path.display()))?;
     parse(&text).map_err(|e| e.context(path.display()))
+}
+
+/// The file's text, refusing it once it holds more than `max_bytes`. A regular file is judged
+/// by its size before reading; anything else (a pipe, a device) is read up to the limit.
+fn read_capped(path: &Path, max_bytes: u64) -> Result<String> {
+    let cannot_read = |e: std::io::Error| Error::new(format!("cannot read: {e}"));
+    let too_large = || {
+        Error::new(format!(
+            "larger than the scene size limit of {max_bytes} bytes (--max-scene-bytes raises it)"
+        ))
+    };
+    let file = std::fs::File::open(path).map_err(cannot_read)?;
+    if file.metadata().is_ok_and(|m| m.is_file() && m.len() > max_bytes) {
+        return Err(too_large());
+    }
+    let mut bytes = Vec::new();
+    let mut reader = file.take(max_bytes.saturating_add(1));
+    let mut chunk = vec![0u8; 1 << 16];
+    loop {
+        let n = match reader.read(&mut chunk) {
+            Ok(0) => break,
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(cannot_read(e)),
+        };
+        bytes.try_reserve(n).map_err(|_| {
+            Error::new(format!("cannot read: out of memory after {} bytes", bytes.len()))
+        })?;
+        bytes.extend_from_slice(&chunk[..n]);
+    }
+    if bytes.len() as u64 > max_bytes {
+        return Err(too_large());
+    }
+    String::from_utf8(bytes).map_err(|e| {
+        Error::new(format!(
+            "not a text file (invalid UTF-8 at byte {})",
+            e.utf8_error().valid_up_to()
+        ))
+    })
 }
 
 /// Parses a scene from COLLADA text.
@@ -34,9 +84,15 @@ pub fn parse(text: &str) -> Result<Scene> {
         skipped_polygons: 0,
         open_nodes: Vec::new(),
         node_visits: 0,
+        census: HashMap::new(),
     };
     let up = up_axis_matrix(root)?;
     let visual_scene = loader.visual_scene(root)?;
+    let mut total = Expansion::default();
+    for node in element_children(visual_scene, "node") {
+        total = total.plus(loader.count_node(node)?);
+    }
+    total.check()?;
     for node in element_children(visual_scene, "node") {
         loader.visit_node(node, up)?;
     }
@@ -58,6 +114,59 @@ struct Loader<'a, 'input> {
     /// Nodes visited so far, instances included: bounds the work of instancing chains, which
     /// can multiply geometry exponentially without any cycle.
     node_visits: usize,
+    /// What each node and geometry expands to, counted once ([`Loader::count_node`]).
+    census: HashMap<roxmltree::NodeId, Expansion>,
+}
+
+/// What expanding part of the node graph adds to the scene, counted before anything is built:
+/// instancing multiplies geometry, so a 40 kB file can describe a billion triangles. Counts
+/// saturate instead of overflowing.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+struct Expansion {
+    nodes: u64,
+    triangles: u64,
+    positions: u64,
+    /// Spheres and lights (one each per instance).
+    others: u64,
+}
+
+/// Most vertex positions a scene may hold: three per supported triangle.
+const MAX_POSITIONS: u64 = 3 * MAX_TRIANGLES as u64;
+
+impl Expansion {
+    fn plus(self, o: Expansion) -> Expansion {
+        Expansion {
+            nodes: self.nodes.saturating_add(o.nodes),
+            triangles: self.triangles.saturating_add(o.triangles),
+            positions: self.positions.saturating_add(o.positions),
+            others: self.others.saturating_add(o.others),
+        }
+    }
+
+    /// Refuses a scene that would exceed a limit, before it is built.
+    fn check(&self) -> Result<()> {
+        let n = |v: u64| if v == u64::MAX { "more than 2^64".to_string() } else { v.to_string() };
+        if self.nodes > MAX_NODE_VISITS as u64 {
+            bail!(
+                "too many node instances ({}, more than {MAX_NODE_VISITS}): nodes instanced too deep",
+                n(self.nodes)
+            );
+        }
+        let limits = [
+            (self.triangles, MAX_TRIANGLES as u64, "triangles"),
+            (self.positions, MAX_POSITIONS, "vertex positions"),
+            (self.others, MAX_TRIANGLES as u64, "spheres and lights"),
+        ];
+        for (count, max, what) in limits {
+            if count > max {
+                bail!(
+                    "the scene would hold {} {what} (counting every instance): at most {max} are supported",
+                    n(count)
+                );
+            }
+        }
+        Ok(())
+    }
 }
 
 /// Deepest node nesting (including instancing) we follow; the course files nest 3 deep.
@@ -72,6 +181,68 @@ impl<'a, 'input> Loader<'a, 'input> {
         self.ids.get(id).copied().ok_or_else(|| {
             Error::new(format!("{what} refers to '{reference}', which does not exist"))
         })
+    }
+
+    /// What visiting `node` would add, counted without building anything, each node and
+    /// geometry once. A cycle or too deep a nesting is the error the visit would give.
+    fn count_node(&mut self, node: Node<'a, 'input>) -> Result<Expansion> {
+        if let Some(&known) = self.census.get(&node.id()) {
+            return Ok(known);
+        }
+        self.check_nesting(node)?;
+        self.open_nodes.push(node.id());
+        let mut total = Expansion { nodes: 1, ..Expansion::default() };
+        for c in node.children().filter(Node::is_element) {
+            let part = match c.tag_name().name() {
+                "node" => self.count_node(c),
+                // An instance of something that does not exist is the visit's error to report.
+                "instance_node" => match c.attribute("url").map(|u| self.resolve(u, "")) {
+                    Some(Ok(target)) => self.count_node(target),
+                    _ => Ok(Expansion::default()),
+                },
+                "instance_geometry" => Ok(self.count_instance(c)),
+                "instance_light" => Ok(Expansion { others: 1, ..Expansion::default() }),
+                _ => Ok(Expansion::default()),
+            };
+            match part {
+                Ok(part) => total = total.plus(part),
+                Err(e) => {
+                    self.open_nodes.pop();
+                    return Err(e);
+                }
+            }
+        }
+        self.open_nodes.pop();
+        self.census.insert(node.id(), total);
+        Ok(total)
+    }
+
+    /// What an `instance_geometry` adds: its geometry's triangles and positions, or a sphere.
+    fn count_instance(&mut self, inst: Node<'a, 'input>) -> Expansion {
+        let Some(Ok(geometry)) = inst.attribute("url").map(|u| self.resolve(u, "")) else {
+            return Expansion::default();
+        };
+        if let Some(&known) = self.census.get(&geometry.id()) {
+            return known;
+        }
+        let count = match child(geometry, "mesh") {
+            Some(mesh) => count_mesh(mesh),
+            None => Expansion { others: 1, ..Expansion::default() },
+        };
+        self.census.insert(geometry.id(), count);
+        count
+    }
+
+    /// Refuses to enter `node` if it is already open (a cycle) or nesting is too deep.
+    fn check_nesting(&self, node: Node) -> Result<()> {
+        if self.open_nodes.contains(&node.id()) {
+            let name = node.attribute("id").or(node.attribute("name")).unwrap_or("?");
+            bail!("node '{name}' instances itself (an instance_node cycle)");
+        }
+        if self.open_nodes.len() >= MAX_NODE_DEPTH {
+            bail!("nodes nested or instanced too deep (more than {MAX_NODE_DEPTH} levels)");
+        }
+        Ok(())
     }
 
     fn visual_scene(&self, root: Node<'a, 'input>) -> Result<Node<'a, 'input>> {
@@ -90,12 +261,7 @@ impl<'a, 'input> Loader<'a, 'input> {
 
     fn visit_node(&mut self, node: Node<'a, 'input>, parent: Mat4) -> Result<()> {
         let name = node.attribute("id").or(node.attribute("name")).unwrap_or("?");
-        if self.open_nodes.contains(&node.id()) {
-            bail!("node '{name}' instances itself (an instance_node cycle)");
-        }
-        if self.open_nodes.len() >= MAX_NODE_DEPTH {
-            bail!("nodes nested or instanced too deep (more than {MAX_NODE_DEPTH} levels)");
-        }
+        self.check_nesting(node)?;
         self.node_visits += 1;
         if self.node_visits > MAX_NODE_VISITS {
             bail!(
@@ -474,6 +640,64 @@ impl<'a, 'input> Loader<'a, 'input> {
         }
         Ok(self.scene)
     }
+}
+
+/// The triangles and positions a mesh makes, counted from its text without parsing numbers or
+/// allocating. A primitive whose counts do not add up counts as nothing: parsing it reports
+/// the problem.
+fn count_mesh(mesh: Node) -> Expansion {
+    // An upper bound: the positions are one of the mesh's sources, of at least 3 numbers each.
+    let positions = element_children(mesh, "source")
+        .filter_map(|s| child(s, "float_array"))
+        .map(|a| tokens(a) / 3)
+        .max()
+        .unwrap_or(0);
+    let triangles = mesh
+        .children()
+        .filter(Node::is_element)
+        .map(prim_triangles)
+        .fold(0u64, u64::saturating_add);
+    Expansion { nodes: 0, triangles, positions, others: 0 }
+}
+
+/// The triangles the fan triangulation makes of a `polylist`, `triangles` or `polygons`.
+fn prim_triangles(prim: Node) -> u64 {
+    let stride = prim_stride(prim);
+    let corners = |p: Node| tokens(p) / stride;
+    match prim.tag_name().name() {
+        "triangles" => child(prim, "p").map_or(0, corners) / 3,
+        "polygons" => element_children(prim, "p")
+            .map(|p| corners(p).saturating_sub(2))
+            .fold(0, u64::saturating_add),
+        "polylist" => polylist_triangles(prim, stride),
+        _ => 0,
+    }
+}
+
+/// A polylist's triangles: the sum of its polygons' corners less two, if `<vcount>` and `<p>`
+/// agree (else 0: parsing reports the mismatch).
+fn polylist_triangles(prim: Node, stride: u64) -> u64 {
+    let vcount = child(prim, "vcount").and_then(|v| v.text()).unwrap_or("");
+    let counts = || vcount.split_ascii_whitespace().map(|t| t.parse::<u64>().unwrap_or(0));
+    let corners = counts().fold(0u64, u64::saturating_add);
+    let p = child(prim, "p").map_or(0, tokens);
+    if corners.saturating_mul(stride) != p {
+        return 0;
+    }
+    counts().map(|n| n.saturating_sub(2)).fold(0, u64::saturating_add)
+}
+
+/// Entries per vertex of a primitive's `<p>`: one more than its largest input offset.
+fn prim_stride(prim: Node) -> u64 {
+    element_children(prim, "input")
+        .filter_map(|i| i.attribute("offset")?.trim().parse::<u64>().ok())
+        .max()
+        .map_or(1, |m| m.saturating_add(1))
+}
+
+/// Whitespace-separated words of an element's text.
+fn tokens(node: Node) -> u64 {
+    node.text().unwrap_or("").split_ascii_whitespace().count() as u64
 }
 
 /// Whether every number of a light is finite.

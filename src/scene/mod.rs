@@ -16,6 +16,9 @@ pub use material::Material;
 
 use crate::math::{Aabb, Vec3};
 
+/// Most triangles a scene may hold: what the acceleration structure can address.
+pub const MAX_TRIANGLES: usize = crate::accel::MAX_TRIANGLES;
+
 /// An analytic sphere (CGL `sphere/radius`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sphere {
@@ -80,7 +83,7 @@ impl Scene {
         }
         // The acceleration structure's limit, checked here so that a scene too large for it is
         // a clear error at load time rather than a failure during the build.
-        let max = crate::accel::MAX_TRIANGLES;
+        let max = MAX_TRIANGLES;
         if self.triangles.len() > max {
             crate::bail!("{} triangles: at most {max} are supported", self.triangles.len());
         }
