@@ -134,18 +134,26 @@ const RECORD: usize = 32;
 
 /// Writes rays in the shared ray-file format, atomically (temp file + rename).
 pub fn write_rays(path: &Path, rays: &[Ray]) -> crate::Result<()> {
-    let mut bytes = Vec::with_capacity(rays.len() * RECORD);
-    for r in rays {
-        for f in [r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z, r.t_min, r.t_max] {
-            bytes.extend_from_slice(&f.to_le_bytes());
+    let mut outputs = crate::staged::Outputs::new();
+    stage_rays(&mut outputs, path, rays)?;
+    outputs.commit()
+}
+
+/// [`write_rays`] as one file of a set written together.
+pub fn stage_rays(
+    outputs: &mut crate::staged::Outputs,
+    path: &Path,
+    rays: &[Ray],
+) -> crate::Result<()> {
+    outputs.stage(path, |w| {
+        for r in rays {
+            for f in
+                [r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z, r.t_min, r.t_max]
+            {
+                w.write_all(&f.to_le_bytes())?;
+            }
         }
-    }
-    let tmp = path.with_extension(format!("rays.tmp-{}", std::process::id()));
-    let io = |e: std::io::Error| crate::Error::new(format!("{}: {e}", path.display()));
-    std::fs::File::create(&tmp).and_then(|mut f| f.write_all(&bytes)).map_err(io)?;
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        io(e)
+        Ok::<(), std::io::Error>(())
     })
 }
 

@@ -25,6 +25,7 @@ pub mod render;
 pub mod sampler;
 pub mod scene;
 pub mod simd;
+pub mod staged;
 pub mod wavefront;
 
 pub use error::{Error, Result};

@@ -1,10 +1,11 @@
 //! `pathtracer bench`: the standard ray benchmark of `../shared/docs/BENCHMARK.md`.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use super::parse_in_range;
 use pathtracer::accel::{Accel, AccelKind};
 use pathtracer::bench::{self, BenchResult, RaySet, Traversal};
+use pathtracer::staged::Outputs;
 use pathtracer::{bail, scene, Error, Result};
 
 const USAGE: &str = "\
@@ -61,10 +62,16 @@ pub fn run(args: &[String]) -> Result<()> {
         (None, only) => {
             let generated = bench::generate_ray_sets(&scene, &accel);
             if let Some(prefix) = &a.rays_out {
+                // All three files or none.
+                let mut outputs = Outputs::new();
                 for set in RaySet::ALL {
-                    let path = PathBuf::from(format!("{}.{}.rays", prefix.display(), set.name()));
-                    bench::write_rays(&path, generated.get(set))?;
+                    bench::stage_rays(
+                        &mut outputs,
+                        &rays_out_path(prefix, set),
+                        generated.get(set),
+                    )?;
                 }
+                outputs.commit()?;
             }
             RaySet::ALL
                 .into_iter()
@@ -111,6 +118,11 @@ pub fn run(args: &[String]) -> Result<()> {
     } else {
         out!("{table}")
     }
+}
+
+/// `PREFIX.primary.rays` and so on.
+fn rays_out_path(prefix: &Path, set: RaySet) -> PathBuf {
+    PathBuf::from(format!("{}.{}.rays", prefix.display(), set.name()))
 }
 
 fn format_table(results: &[BenchResult]) -> String {

@@ -33,6 +33,7 @@ pub mod compare;
 pub mod converge;
 pub mod gen;
 pub mod render;
+pub mod signals;
 
 use std::fmt;
 use std::io::{self, ErrorKind, Write};
@@ -147,6 +148,10 @@ pub fn parse_in_range(flag: &str, text: &str, lo: u32, hi: u32) -> Result<u32> {
 /// file would replace the link itself, not its target), or the same file as one of `inputs`
 /// (the output would destroy it). `what` names the flag, e.g. "-f" or "--csv".
 pub fn check_output(what: &str, output: &Path, inputs: &[&Path]) -> Result<()> {
+    // Most file systems' NAME_MAX: a longer name cannot be created, so say so before the work.
+    if output.file_name().is_some_and(|n| n.len() > 255) {
+        bail!("{what} {}: the file name is longer than 255 bytes", output.display());
+    }
     let Ok(meta) = std::fs::symlink_metadata(output) else {
         return Ok(()); // Nothing there yet: nothing to destroy.
     };

@@ -5,9 +5,11 @@ use std::time::Instant;
 
 use super::{check_output, parse_in_range, parse_number, Report};
 use pathtracer::accel::{Accel, AccelKind};
+use pathtracer::film;
 use pathtracer::integrator::{DirectLighting, Integrator};
 use pathtracer::render::{render, RenderConfig};
 use pathtracer::sampler::SamplerKind;
+use pathtracer::staged::Outputs;
 use pathtracer::{bail, scene, Error, Result};
 
 const USAGE: &str = "\
@@ -125,11 +127,24 @@ fn render_to_file(cli: &Cli) -> Result<()> {
     print_render_stats(&mut report, &out);
 
     report.print(format_args!("[PathTracer] Saving to file: {}... ", output.display()));
-    pathtracer::film::write_image(&output, out.width, out.height, &out.pixels)?;
+    // The image and the rate image are written together: if either fails, neither replaces
+    // an existing file.
+    let mut outputs = Outputs::new();
+    film::stage_image(&mut outputs, &output, out.width, out.height, &out.pixels)?;
+    let rate = film::rate_image_path(&output);
+    if config.adaptive.is_some() {
+        film::stage_rate_image(
+            &mut outputs,
+            &rate,
+            out.width,
+            out.height,
+            &out.samples,
+            config.spp,
+        )?;
+    }
+    outputs.commit()?;
     report.print(format_args!("Done!\n"));
     if config.adaptive.is_some() {
-        let rate = pathtracer::film::rate_image_path(&output);
-        pathtracer::film::write_rate_image(&rate, out.width, out.height, &out.samples, config.spp)?;
         report.print(format_args!("[PathTracer] Sampling rate image: {}\n", rate.display()));
     }
     report.print(format_args!("[PathTracer] Job completed.\n"));

@@ -1,13 +1,13 @@
 //! Image files: PNG (course tone map), EXR (linear), and the sampling-rate image.
 
-use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use image::{ImageFormat, Rgb32FImage, RgbImage};
 
 use crate::error::try_filled_vec;
 use crate::math::Vec3;
-use crate::{bail, Error, Result};
+use crate::staged::Outputs;
+use crate::{bail, Result};
 
 /// The course's display transform of one channel: one stop of exposure, gamma 2.2, clamped.
 #[inline]
@@ -16,8 +16,22 @@ pub fn tone_map(l: f32) -> u8 {
     (v * 255.0 + 0.5) as u8
 }
 
-/// Writes `pixels` (row-major, row 0 at the top) as PNG or EXR, chosen by the extension.
+/// Writes `pixels` (row-major, row 0 at the top) as PNG or EXR, chosen by the extension:
+/// atomically, so a reader sees the old file or the complete new one.
 pub fn write_image(path: &Path, width: u32, height: u32, pixels: &[Vec3]) -> Result<()> {
+    let mut outputs = Outputs::new();
+    stage_image(&mut outputs, path, width, height, pixels)?;
+    outputs.commit()
+}
+
+/// [`write_image`] as one file of a set written together (see [`Outputs`]).
+pub fn stage_image(
+    outputs: &mut Outputs,
+    path: &Path,
+    width: u32,
+    height: u32,
+    pixels: &[Vec3],
+) -> Result<()> {
     check_size(path, width, height, pixels.len())?;
     match extension(path).as_deref() {
         Some("png") => {
@@ -25,7 +39,7 @@ pub fn write_image(path: &Path, width: u32, height: u32, pixels: &[Vec3]) -> Res
             for (p, l) in img.pixels_mut().zip(pixels) {
                 *p = image::Rgb([tone_map(l.x), tone_map(l.y), tone_map(l.z)]);
             }
-            save_atomically(path, |w| img.write_to(w, ImageFormat::Png))
+            outputs.stage(path, |w| img.write_to(w, ImageFormat::Png))
         }
         Some("exr") => {
             let buffer = try_filled_vec(3 * pixels.len(), 0.0, &image_name(width, height))?;
@@ -33,7 +47,7 @@ pub fn write_image(path: &Path, width: u32, height: u32, pixels: &[Vec3]) -> Res
             for (p, l) in img.pixels_mut().zip(pixels) {
                 *p = image::Rgb(l.to_array());
             }
-            save_atomically(path, |w| img.write_to(w, ImageFormat::OpenExr))
+            outputs.stage(path, |w| img.write_to(w, ImageFormat::OpenExr))
         }
         _ => bail!("{}: output must end in .png or .exr", path.display()),
     }
@@ -47,7 +61,8 @@ pub fn rate_image_path(output: &Path) -> PathBuf {
 
 /// The adaptive-sampling rate image: each pixel's samples / `max_samples` as a colour ramp
 /// from blue (few samples: converged early) through green to red (all samples taken).
-pub fn write_rate_image(
+pub fn stage_rate_image(
+    outputs: &mut Outputs,
     path: &Path,
     width: u32,
     height: u32,
@@ -59,7 +74,7 @@ pub fn write_rate_image(
     for (p, &n) in img.pixels_mut().zip(samples) {
         *p = image::Rgb(ramp(n as f32 / max_samples.max(1) as f32));
     }
-    save_atomically(path, |w| img.write_to(w, ImageFormat::Png))
+    outputs.stage(path, |w| img.write_to(w, ImageFormat::Png))
 }
 
 /// A black 8-bit image; its size is the user's (`-r`), so a failed allocation is an error.
@@ -93,29 +108,6 @@ fn check_size(path: &Path, width: u32, height: u32, len: usize) -> Result<()> {
         bail!("{}: {len} pixels do not make a {width} x {height} image", path.display());
     }
     Ok(())
-}
-
-/// Encodes into `NAME.tmp-PID` beside `path`, then renames it over `path`: readers see either
-/// the old file or the complete new one, and a failure leaves no partial file behind.
-fn save_atomically(
-    path: &Path,
-    encode: impl FnOnce(&mut BufWriter<std::fs::File>) -> image::ImageResult<()>,
-) -> Result<()> {
-    let name = path.file_name().map_or("out".into(), |n| n.to_string_lossy().into_owned());
-    let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
-    let fail =
-        |e: &dyn std::fmt::Display| Error::new(format!("{}: cannot write: {e}", path.display()));
-    let result = (|| {
-        let file = std::fs::File::create(&tmp).map_err(|e| fail(&e))?;
-        let mut w = BufWriter::new(file);
-        encode(&mut w).map_err(|e| fail(&e))?;
-        w.flush().map_err(|e| fail(&e))?;
-        std::fs::rename(&tmp, path).map_err(|e| fail(&e))
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
 }
 
 #[cfg(test)]
