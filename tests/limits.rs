@@ -184,3 +184,15 @@ fn an_image_too_large_for_memory_is_a_one_line_error_before_rendering() {
     assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0, "left a file");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn skinned_instances_are_counted_too() {
+    let controller = r##"<library_controllers><controller id="c"><skin source="#g">
+        <bind_shape_matrix>1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1</bind_shape_matrix></skin>
+        </controller></library_controllers><library_nodes>"##;
+    let text = instancing_scene(1000, 32, 3)
+        .replace(r##"<instance_geometry url="#g"/>"##, r##"<instance_controller url="#c"/>"##)
+        .replace("<library_nodes>", controller);
+    let e = collada::parse(&text).unwrap_err().to_string();
+    assert!(e.contains("32702464 triangles (counting every instance)"), "{e}");
+}

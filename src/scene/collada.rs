@@ -85,6 +85,8 @@ pub fn parse(text: &str) -> Result<Scene> {
         open_nodes: Vec::new(),
         node_visits: 0,
         census: HashMap::new(),
+        controllers: 0,
+        ignored: ignored_features(root),
     };
     let up = up_axis_matrix(root)?;
     let visual_scene = loader.visual_scene(root)?;
@@ -116,6 +118,10 @@ struct Loader<'a, 'input> {
     node_visits: usize,
     /// What each node and geometry expands to, counted once ([`Loader::count_node`]).
     census: HashMap<roxmltree::NodeId, Expansion>,
+    /// `instance_controller`s loaded in their bind pose.
+    controllers: usize,
+    /// What the file holds that rendering ignores (animation, textures), named once.
+    ignored: Vec<&'static str>,
 }
 
 /// What expanding part of the node graph adds to the scene, counted before anything is built:
@@ -171,6 +177,8 @@ impl Expansion {
 
 /// Deepest node nesting (including instancing) we follow; the course files nest 3 deep.
 const MAX_NODE_DEPTH: usize = 256;
+/// Longest chain of controllers (a skin of a morph of a mesh) followed to the mesh.
+const MAX_CONTROLLER_CHAIN: usize = 8;
 /// Most node visits (instances included) in one file.
 const MAX_NODE_VISITS: usize = 1 << 20;
 
@@ -201,6 +209,7 @@ impl<'a, 'input> Loader<'a, 'input> {
                     _ => Ok(Expansion::default()),
                 },
                 "instance_geometry" => Ok(self.count_instance(c)),
+                "instance_controller" => Ok(self.count_controller(c)),
                 "instance_light" => Ok(Expansion { others: 1, ..Expansion::default() }),
                 _ => Ok(Expansion::default()),
             };
@@ -222,6 +231,11 @@ impl<'a, 'input> Loader<'a, 'input> {
         let Some(Ok(geometry)) = inst.attribute("url").map(|u| self.resolve(u, "")) else {
             return Expansion::default();
         };
+        self.count_geometry(geometry)
+    }
+
+    /// What one instance of `geometry` adds, counted once per geometry.
+    fn count_geometry(&mut self, geometry: Node<'a, 'input>) -> Expansion {
         if let Some(&known) = self.census.get(&geometry.id()) {
             return known;
         }
@@ -231,6 +245,14 @@ impl<'a, 'input> Loader<'a, 'input> {
         };
         self.census.insert(geometry.id(), count);
         count
+    }
+
+    /// What an `instance_controller` adds: its skin's (or morph's) source geometry.
+    fn count_controller(&mut self, inst: Node<'a, 'input>) -> Expansion {
+        match self.controller_geometry(inst) {
+            Ok((geometry, _)) => self.count_geometry(geometry),
+            Err(_) => Expansion::default(),
+        }
     }
 
     /// Refuses to enter `node` if it is already open (a cycle) or nesting is too deep.
@@ -286,6 +308,7 @@ impl<'a, 'input> Loader<'a, 'input> {
         for c in node.children().filter(Node::is_element) {
             let result = match c.tag_name().name() {
                 "instance_geometry" => self.instance_geometry(c, world),
+                "instance_controller" => self.instance_controller(c, world),
                 "instance_light" => self.instance_light(c, world),
                 "instance_camera" => self.instance_camera(c, world),
                 "node" => self.visit_node(c, world),
@@ -308,6 +331,53 @@ impl<'a, 'input> Loader<'a, 'input> {
 
     fn instance_geometry(&mut self, inst: Node<'a, 'input>, world: Mat4) -> Result<()> {
         let geometry = self.resolve(required_attr(inst, "url")?, "instance_geometry")?;
+        self.geometry(geometry, inst, world)
+    }
+
+    /// A skinned (or morphed) mesh, as Blender and other tools export characters: its source
+    /// geometry in the bind pose. The joints, weights and morph targets are ignored (a
+    /// warning says so once: [`Loader::finish`]).
+    fn instance_controller(&mut self, inst: Node<'a, 'input>, world: Mat4) -> Result<()> {
+        let (geometry, bind_shape) = self.controller_geometry(inst)?;
+        self.controllers += 1;
+        self.geometry(geometry, inst, world * bind_shape)
+    }
+
+    /// The geometry an `instance_controller` deforms and its skin's `bind_shape_matrix` (the
+    /// mesh's transform into the bind pose), following a chain of controllers (a skin of a
+    /// morph) a few steps.
+    fn controller_geometry(&self, inst: Node<'a, 'input>) -> Result<(Node<'a, 'input>, Mat4)> {
+        let mut target = self.resolve(required_attr(inst, "url")?, "instance_controller")?;
+        let mut bind_shape = Mat4::IDENTITY;
+        for _ in 0..MAX_CONTROLLER_CHAIN {
+            if target.tag_name().name() != "controller" {
+                return Ok((target, bind_shape));
+            }
+            let cid = target.attribute("id").unwrap_or("?");
+            let deformer = target
+                .children()
+                .find(|c| matches!(c.tag_name().name(), "skin" | "morph"))
+                .ok_or_else(|| {
+                    Error::new(format!("controller '{cid}' has no <skin> or <morph>"))
+                })?;
+            if let Some(m) = child(deformer, "bind_shape_matrix") {
+                let m =
+                    row_major_matrix(m).map_err(|e| e.context(format!("controller '{cid}'")))?;
+                bind_shape *= m;
+            }
+            let what = format!("controller '{cid}' <{}>", deformer.tag_name().name());
+            target = self.resolve(required_attr(deformer, "source")?, &what)?;
+        }
+        bail!("controllers chained more than {MAX_CONTROLLER_CHAIN} deep")
+    }
+
+    /// One instance of `geometry` (a mesh or a CGL sphere), with the materials `inst` binds.
+    fn geometry(
+        &mut self,
+        geometry: Node<'a, 'input>,
+        inst: Node<'a, 'input>,
+        world: Mat4,
+    ) -> Result<()> {
         let gname = geometry.attribute("id").unwrap_or("?");
         let bindings = material_bindings(inst);
         if let Some(mesh) = child(geometry, "mesh") {
@@ -620,6 +690,26 @@ impl<'a, 'input> Loader<'a, 'input> {
                 self.skipped_polygons
             ));
         }
+        if self.controllers > 0 {
+            let n = self.controllers;
+            self.ignored.insert(
+                0,
+                if n == 1 {
+                    "skinning (1 skinned mesh drawn in its bind pose)"
+                } else {
+                    "skinning (skinned meshes drawn in their bind pose)"
+                },
+            );
+        }
+        if !self.ignored.is_empty() {
+            self.scene.warnings.push(format!("ignored: {}", self.ignored.join("; ")));
+        }
+        if self.scene.triangles.is_empty() && self.scene.spheres.is_empty() {
+            self.scene.warnings.push(
+                "nothing to render: the scene has 0 triangles and 0 spheres (the image will be black)"
+                    .into(),
+            );
+        }
         match self.camera {
             Some(c) => self.scene.camera = c,
             None => self
@@ -698,6 +788,30 @@ fn prim_stride(prim: Node) -> u64 {
 /// Whitespace-separated words of an element's text.
 fn tokens(node: Node) -> u64 {
     node.text().unwrap_or("").split_ascii_whitespace().count() as u64
+}
+
+/// What a file holds that rendering ignores, for one warning: animation (the scene is drawn
+/// at rest) and textures (surfaces take their effect's flat colour).
+fn ignored_features(root: Node) -> Vec<&'static str> {
+    let has = |name: &str| root.descendants().any(|n| n.tag_name().name() == name);
+    let mut ignored = Vec::new();
+    if has("animation") {
+        ignored.push("animation (the scene is drawn at rest)");
+    }
+    if has("texture") {
+        ignored.push("textures (surfaces take their flat diffuse colour)");
+    }
+    ignored
+}
+
+/// A `<bind_shape_matrix>`: 16 numbers, row-major like a node's `<matrix>`.
+fn row_major_matrix(m: Node) -> Result<Mat4> {
+    let v = numbers(m, m.tag_name().name())?;
+    if v.len() != 16 {
+        bail!("<{}> has {} numbers, expected 16", m.tag_name().name(), v.len());
+    }
+    let cols: [f32; 16] = std::array::from_fn(|i| v[i]);
+    Ok(Mat4::from_cols_array(&cols).transpose())
 }
 
 /// Whether every number of a light is finite.
