@@ -7,6 +7,9 @@ use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
 
+pub mod record;
+pub use record::BenchRecord;
+
 use crate::accel::traverse_packet::default_fallback;
 use crate::accel::{Accel, TraceStats};
 use crate::math::{orthonormal_basis, Hit, Ray, Vec3};
@@ -410,29 +413,25 @@ impl BenchResult {
         self.totals.stats.triangle_tests as f64 / self.rays.max(1) as f64
     }
 
-    /// One JSON object on one line (no external JSON crate: the fields are numbers and plain
-    /// names, escaped where they could hold a quote).
-    pub fn to_json(&self) -> String {
-        format!(
-            concat!(
-                "{{\"scene\":\"{}\",\"triangles\":{},\"ray_set\":\"{}\",\"rays\":{},\"threads\":{},",
-                "\"traversal\":\"{}\",\"build_ms\":{:.3},\"mrays_per_s\":{:.3},\"node_tests_per_ray\":{:.4},",
-                "\"triangle_tests_per_ray\":{:.4},\"hits\":{},\"t_sum\":{:.6},\"bytes_per_triangle\":{:.1}}}"
-            ),
-            self.scene.replace('\\', "\\\\").replace('"', "\\\""),
-            self.triangles,
-            self.ray_set.name(),
-            self.rays,
-            self.threads,
-            self.traversal.name(),
-            self.build_ms,
-            self.mrays_per_s,
-            self.node_tests_per_ray(),
-            self.triangle_tests_per_ray(),
-            self.totals.hits,
-            self.totals.t_sum,
-            self.bytes_per_triangle,
-        )
+    /// The record `bench --json` writes for this result.
+    pub fn record(&self) -> BenchRecord {
+        BenchRecord {
+            scene: self.scene.clone(),
+            triangles: self.triangles,
+            ray_set: self.ray_set.name().into(),
+            rays: self.rays,
+            threads: self.threads,
+            traversal: self.traversal.name().into(),
+            build_ms: self.build_ms,
+            mrays_per_s: self.mrays_per_s,
+            node_tests_per_ray: self.node_tests_per_ray(),
+            triangle_tests_per_ray: self.triangle_tests_per_ray(),
+            hits: self.totals.hits,
+            t_sum: self.totals.t_sum,
+            bytes_per_triangle: self.bytes_per_triangle,
+            node_tests: self.totals.stats.node_tests,
+            triangle_tests: self.totals.stats.triangle_tests,
+        }
     }
 }
 

@@ -47,6 +47,14 @@ use pathtracer::{bail, Error, Result};
 /// The first failed write to stdout: later writes fail the same way without trying again
 /// (so a closed pipe gives one error, not one per line).
 static STDOUT_FAILED: OnceLock<(ErrorKind, Error)> = OnceLock::new();
+/// Set when a command's check failed (`bench --baseline` found a regression): exit code 1.
+static CHECK_FAILED: AtomicBool = AtomicBool::new(false);
+
+/// Makes the exit code 1 (a check that ran and failed, unlike an error's 2).
+pub fn fail_check() {
+    CHECK_FAILED.store(true, Ordering::Relaxed);
+}
+
 /// Set when a write to stderr failed with anything but a closed pipe: the exit code is then 2.
 static STDERR_FAILED: AtomicBool = AtomicBool::new(false);
 
@@ -102,6 +110,8 @@ pub fn exit_code(result: Result<()>) -> ExitCode {
     }
     if STDERR_FAILED.load(Ordering::Relaxed) {
         ExitCode::from(2)
+    } else if CHECK_FAILED.load(Ordering::Relaxed) {
+        ExitCode::from(1)
     } else {
         ExitCode::SUCCESS
     }
