@@ -147,6 +147,9 @@ fn the_scene_file_is_read_only_up_to_its_size_limit() {
     let zero = pathtracer_within(200, &["--info", "--max-scene-bytes", "50000000", "/dev/zero"]);
     assert_one_line_error(&zero, "/dev/zero: larger than the scene size limit of 50000000");
     assert_one_line_error(&pathtracer(&["--max-scene-bytes", "0", s]), "--max-scene-bytes");
+    // converge takes the render flags, this one too.
+    let converge = ["converge", s, "--spp", "1", "--ref-spp", "2", "--max-scene-bytes", &below];
+    assert_one_line_error(&pathtracer(&converge), "scene size limit");
 }
 
 #[test]

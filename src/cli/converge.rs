@@ -81,7 +81,7 @@ pub fn run(args: &[String]) -> Result<()> {
         check_output("converge: --write-reference", p, &inputs)?;
     }
 
-    let scene = scene::collada::load(&cli.scene)?;
+    let scene = scene::collada::load_with_limit(&cli.scene, cli.max_scene_bytes)?;
     for w in scene.warnings.iter().chain(&lighting_warnings(&scene, cli.config.integrator)) {
         errln!("warning: {}: {w}", cli.scene.display());
     }
