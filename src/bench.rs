@@ -7,6 +7,9 @@ use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
 
+pub mod record;
+pub use record::BenchRecord;
+
 use crate::accel::traverse_packet::default_fallback;
 use crate::accel::{Accel, TraceStats};
 use crate::math::{orthonormal_basis, Hit, Ray, Vec3};
@@ -134,18 +137,26 @@ const RECORD: usize = 32;
 
 /// Writes rays in the shared ray-file format, atomically (temp file + rename).
 pub fn write_rays(path: &Path, rays: &[Ray]) -> crate::Result<()> {
-    let mut bytes = Vec::with_capacity(rays.len() * RECORD);
-    for r in rays {
-        for f in [r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z, r.t_min, r.t_max] {
-            bytes.extend_from_slice(&f.to_le_bytes());
+    let mut outputs = crate::staged::Outputs::new();
+    stage_rays(&mut outputs, path, rays)?;
+    outputs.commit()
+}
+
+/// [`write_rays`] as one file of a set written together.
+pub fn stage_rays(
+    outputs: &mut crate::staged::Outputs,
+    path: &Path,
+    rays: &[Ray],
+) -> crate::Result<()> {
+    outputs.stage(path, |w| {
+        for r in rays {
+            for f in
+                [r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z, r.t_min, r.t_max]
+            {
+                w.write_all(&f.to_le_bytes())?;
+            }
         }
-    }
-    let tmp = path.with_extension(format!("rays.tmp-{}", std::process::id()));
-    let io = |e: std::io::Error| crate::Error::new(format!("{}: {e}", path.display()));
-    std::fs::File::create(&tmp).and_then(|mut f| f.write_all(&bytes)).map_err(io)?;
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        io(e)
+        Ok::<(), std::io::Error>(())
     })
 }
 
@@ -397,29 +408,25 @@ impl BenchResult {
         self.totals.stats.triangle_tests as f64 / self.rays.max(1) as f64
     }
 
-    /// One JSON object on one line (no external JSON crate: the fields are numbers and plain
-    /// names, escaped where they could hold a quote).
-    pub fn to_json(&self) -> String {
-        format!(
-            concat!(
-                "{{\"scene\":\"{}\",\"triangles\":{},\"ray_set\":\"{}\",\"rays\":{},\"threads\":{},",
-                "\"traversal\":\"{}\",\"build_ms\":{:.3},\"mrays_per_s\":{:.3},\"node_tests_per_ray\":{:.4},",
-                "\"triangle_tests_per_ray\":{:.4},\"hits\":{},\"t_sum\":{:.6},\"bytes_per_triangle\":{:.1}}}"
-            ),
-            self.scene.replace('\\', "\\\\").replace('"', "\\\""),
-            self.triangles,
-            self.ray_set.name(),
-            self.rays,
-            self.threads,
-            self.traversal.name(),
-            self.build_ms,
-            self.mrays_per_s,
-            self.node_tests_per_ray(),
-            self.triangle_tests_per_ray(),
-            self.totals.hits,
-            self.totals.t_sum,
-            self.bytes_per_triangle,
-        )
+    /// The record `bench --json` writes for this result.
+    pub fn record(&self) -> BenchRecord {
+        BenchRecord {
+            scene: self.scene.clone(),
+            triangles: self.triangles,
+            ray_set: self.ray_set.name().into(),
+            rays: self.rays,
+            threads: self.threads,
+            traversal: self.traversal.name().into(),
+            build_ms: self.build_ms,
+            mrays_per_s: self.mrays_per_s,
+            node_tests_per_ray: self.node_tests_per_ray(),
+            triangle_tests_per_ray: self.triangle_tests_per_ray(),
+            hits: self.totals.hits,
+            t_sum: self.totals.t_sum,
+            bytes_per_triangle: self.bytes_per_triangle,
+            node_tests: self.totals.stats.node_tests,
+            triangle_tests: self.totals.stats.triangle_tests,
+        }
     }
 }
 

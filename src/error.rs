@@ -84,6 +84,34 @@ impl fmt::Display for Error {
 
 impl std::error::Error for Error {}
 
+/// A vector of `len` copies of `value`, or an error naming `what` if the memory cannot be had:
+/// for buffers whose size a user chooses (`-r W H`), where `vec!` would abort the process.
+pub fn try_filled_vec<T: Clone>(len: usize, value: T, what: &str) -> Result<Vec<T>> {
+    let mut v = Vec::new();
+    let bytes = len.saturating_mul(std::mem::size_of::<T>());
+    v.try_reserve_exact(len).map_err(|_| {
+        Error::new(format!("out of memory: cannot allocate {} for {what}", human_bytes(bytes)))
+    })?;
+    v.resize(len, value);
+    Ok(v)
+}
+
+/// `1717986918` -> "1.6 GiB".
+fn human_bytes(bytes: usize) -> String {
+    let units = ["bytes", "KiB", "MiB", "GiB", "TiB"];
+    let mut v = bytes as f64;
+    let mut unit = 0;
+    while v >= 1024.0 && unit + 1 < units.len() {
+        v /= 1024.0;
+        unit += 1;
+    }
+    if unit == 0 {
+        format!("{bytes} bytes")
+    } else {
+        format!("{v:.1} {}", units[unit])
+    }
+}
+
 /// `bail!("...")` returns early with an [`Error::Invalid`] built by `format!`.
 #[macro_export]
 macro_rules! bail {
@@ -107,5 +135,15 @@ mod tests {
             io.context("--csv").message(),
             "a.dae: --csv: cannot read: No such file or directory"
         );
+    }
+
+    #[test]
+    fn an_impossible_allocation_is_an_error_naming_it() {
+        let e = try_filled_vec(usize::MAX / 2, 0u64, "the test image").unwrap_err();
+        assert!(e.message().starts_with("out of memory: cannot allocate"), "{e}");
+        assert!(e.message().ends_with("for the test image"), "{e}");
+        assert_eq!(try_filled_vec(3, 7u8, "x").unwrap(), vec![7, 7, 7]);
+        assert_eq!(human_bytes(1717986918), "1.6 GiB");
+        assert_eq!(human_bytes(10), "10 bytes");
     }
 }

@@ -64,6 +64,7 @@
 //!
 //! ```text
 //! error        the error enum and `bail!`
+//! staged       a command's output files, written all or none (temporaries, signals)
 //! math         Vec3, Aabb, Ray, Hit (scalar)
 //! simd         lane types and helpers
 //! sampler      PCG32, Sobol, the per-path random numbers
@@ -98,6 +99,7 @@ pub mod render;
 pub mod sampler;
 pub mod scene;
 pub mod simd;
+pub mod staged;
 pub mod wavefront;
 
 pub use accel::{Accel, AccelKind, BuildParams, RayPacket, TraceStats};

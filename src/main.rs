@@ -9,6 +9,8 @@ use std::process::ExitCode;
 mod cli;
 
 fn main() -> ExitCode {
+    // First, while this is the only thread: the signal mask is inherited by every later one.
+    cli::signals::remove_temporaries_on_signals();
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = match args.first().map(String::as_str) {
         Some("bench") => cli::bench::run(&args[1..]),

@@ -144,10 +144,17 @@ fn decode(path: &Path) -> Result<image::DynamicImage> {
 
 /// Writes a linear RGB image as 32-bit float OpenEXR (atomically, through the film module).
 pub fn write_exr(path: &Path, image: &Image) -> Result<()> {
+    let mut outputs = crate::staged::Outputs::new();
+    stage_exr(&mut outputs, path, image)?;
+    outputs.commit()
+}
+
+/// [`write_exr`] as one file of a set written together.
+pub fn stage_exr(outputs: &mut crate::staged::Outputs, path: &Path, image: &Image) -> Result<()> {
     if !path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
         bail!("{}: a reference must be written as .exr", path.display());
     }
-    crate::film::write_image(path, image.width, image.height, &image.pixels)
+    crate::film::stage_image(outputs, path, image.width, image.height, &image.pixels)
 }
 
 #[cfg(test)]

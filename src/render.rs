@@ -2,6 +2,7 @@
 
 use std::ops::Range;
 use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
@@ -168,48 +169,42 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         .num_threads(config.threads)
         .build()
         .map_err(|e| crate::Error::new(format!("cannot start {} threads: {e}", config.threads)))?;
+    // The image buffers first, so that an image too large for memory is an error before any
+    // work, and each tile is copied in as it finishes (never the whole image twice).
+    let n = config.width as usize * config.height as usize;
+    let size = format!("the {}x{} image", config.width, config.height);
+    let kept = if config.keep_sums { window.pixel_count() } else { 0 };
+    let image = Mutex::new(Image {
+        pixels: crate::error::try_filled_vec(n, Vec3::ZERO, &size)?,
+        samples: crate::error::try_filled_vec(n, 0, &size)?,
+        sums: crate::error::try_filled_vec(kept, ExactRgb::default(), &size)?,
+        window,
+        stats: RenderStats::default(),
+    });
     let tiles: Vec<Tile> = wavefront::tiles(config.width, config.height)
         .into_iter()
         .filter_map(|t| window.clip(t))
         .collect();
     let done = AtomicUsize::new(0);
     let start = Instant::now();
-    let (results, time): (Vec<TileResult>, Duration) = std::thread::scope(|s| {
+    let time = std::thread::scope(|s| {
         // A progress line only makes sense on a terminal; logs and pipes get the final stats.
         if config.progress && std::io::IsTerminal::is_terminal(&std::io::stderr()) {
             s.spawn(|| report_progress(&done, tiles.len(), start));
         }
-        let results = pool.install(|| {
-            tiles
-                .par_iter()
-                .map_init(Workspace::default, |ws, &tile| {
-                    let r = render_one_tile(&ctx, tile, ws);
-                    done.fetch_add(1, Ordering::Relaxed);
-                    r
-                })
-                .collect()
+        pool.install(|| {
+            tiles.par_iter().for_each_init(Workspace::default, |ws, &tile| {
+                let r = render_one_tile(&ctx, tile, ws);
+                image.lock().unwrap_or_else(|e| e.into_inner()).add_tile(config.width, &tile, &r);
+                done.fetch_add(1, Ordering::Relaxed);
+            })
         });
         let time = start.elapsed();
         done.store(usize::MAX, Ordering::Relaxed);
-        (results, time)
+        time
     });
-
-    let n = (config.width * config.height) as usize;
-    let (mut pixels, mut samples) = (vec![Vec3::ZERO; n], vec![0; n]);
-    let mut sums =
-        vec![ExactRgb::default(); if config.keep_sums { window.pixel_count() } else { 0 }];
-    let mut stats = RenderStats::default();
-    for (tile, r) in tiles.iter().zip(&results) {
-        let means: Vec<Vec3> =
-            r.sums.iter().zip(&r.samples).map(|(s, &n)| Vec3::from_array(s.mean(n))).collect();
-        copy_tile(&mut pixels, config.width, tile, &means);
-        copy_tile(&mut samples, config.width, tile, &r.samples);
-        if config.keep_sums {
-            let local = Tile { x0: tile.x0 - window.x0, y0: tile.y0 - window.y0, ..*tile };
-            copy_tile(&mut sums, window.width(), &local, &r.sums);
-        }
-        stats.add(&r.stats);
-    }
+    let Image { pixels, samples, sums, stats, .. } =
+        image.into_inner().unwrap_or_else(|e| e.into_inner());
     let (width, height) = (config.width, config.height);
     Ok(RenderOutput { width, height, pixels, samples, window, sums, stats, time })
 }
@@ -248,6 +243,32 @@ fn check_range_and_crop(config: &RenderConfig) -> crate::Result<(Range<u32>, Rec
         );
     }
     Ok((samples, window))
+}
+
+/// The image being assembled from finished tiles.
+struct Image {
+    pixels: Vec<Vec3>,
+    samples: Vec<u32>,
+    /// The exact sums of the pixels in `window`, when the config keeps them (parts).
+    sums: Vec<ExactRgb>,
+    window: Rect,
+    stats: RenderStats,
+}
+
+impl Image {
+    fn add_tile(&mut self, width: u32, tile: &Tile, r: &TileResult) {
+        let means: Vec<Vec3> =
+            r.sums.iter().zip(&r.samples).map(|(s, &n)| Vec3::from_array(s.mean(n))).collect();
+        copy_tile(&mut self.pixels, width, tile, &means);
+        copy_tile(&mut self.samples, width, tile, &r.samples);
+        if !self.sums.is_empty() {
+            let w = self.window;
+            let local = Tile { x0: tile.x0 - w.x0, y0: tile.y0 - w.y0, ..*tile };
+            copy_tile(&mut self.sums, w.width(), &local, &r.sums);
+        }
+        // Integer counts: the sum does not depend on the order tiles finish in.
+        self.stats.add(&r.stats);
+    }
 }
 
 struct TileResult {

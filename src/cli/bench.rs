@@ -1,10 +1,11 @@
 //! `pathtracer bench`: the standard ray benchmark of `../shared/docs/BENCHMARK.md`.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use super::parse_in_range;
+use super::{parse_in_range, parse_number};
 use pathtracer::accel::{Accel, AccelKind};
-use pathtracer::bench::{self, BenchResult, RaySet, Traversal};
+use pathtracer::bench::{self, BenchRecord, BenchResult, RaySet, Traversal};
+use pathtracer::staged::Outputs;
 use pathtracer::{bail, scene, Error, Result};
 
 const USAGE: &str = "\
@@ -23,7 +24,11 @@ Options:
   --packet-fallback N   packets hand subtrees entered by <= N lanes to single rays
                         (default: the tuned value; for measuring it)
   --reps N              timed repetitions after a warm-up; the best counts (default 5)
-  --json                one JSON object per line on stdout (the table goes to stderr)";
+  --json                one JSON object per line on stdout (the table goes to stderr)
+  --baseline FILE       compare the exact counters and checksums with FILE (written by
+                        --json): each regression on one line, then exit code 1
+  --tolerance PCT       with --baseline: node and triangle tests may rise, and hits, t_sum
+                        and rays move, by at most PCT percent (default 0: exact)";
 
 struct BenchArgs {
     scene: PathBuf,
@@ -35,6 +40,8 @@ struct BenchArgs {
     reps: usize,
     json: bool,
     fallback: Option<u32>,
+    baseline: Option<PathBuf>,
+    tolerance_pct: f64,
 }
 
 pub fn run(args: &[String]) -> Result<()> {
@@ -42,6 +49,8 @@ pub fn run(args: &[String]) -> Result<()> {
         return outln!("{USAGE}");
     }
     let a = parse(args)?;
+    // A bad baseline fails before the work, not after it.
+    let baseline = a.baseline.as_deref().map(read_baseline).transpose()?;
     let loaded = scene::collada::load(&a.scene)?;
     let scene = bench::triangles_only(&loaded);
     let pool = rayon::ThreadPoolBuilder::new()
@@ -62,10 +71,16 @@ pub fn run(args: &[String]) -> Result<()> {
         (None, only) => {
             let generated = bench::generate_ray_sets(&scene, &accel);
             if let Some(prefix) = &a.rays_out {
+                // All three files or none.
+                let mut outputs = Outputs::new();
                 for set in RaySet::ALL {
-                    let path = PathBuf::from(format!("{}.{}.rays", prefix.display(), set.name()));
-                    bench::write_rays(&path, generated.get(set))?;
+                    bench::stage_rays(
+                        &mut outputs,
+                        &rays_out_path(prefix, set),
+                        generated.get(set),
+                    )?;
                 }
+                outputs.commit()?;
             }
             RaySet::ALL
                 .into_iter()
@@ -100,18 +115,59 @@ pub fn run(args: &[String]) -> Result<()> {
                     / scene.triangles.len().max(1) as f64,
             };
             if a.json {
-                outln!("{}", r.to_json())?;
+                outln!("{}", r.record().to_json())?;
             }
             results.push(r);
         }
     }
-    let table = format_table(&results);
+    let mut report = format_table(&results);
+    if let (Some(base), Some(path)) = (&baseline, &a.baseline) {
+        report += &compare_with_baseline(base, path, &results, a.tolerance_pct);
+    }
     if a.json {
-        super::write_stderr(format_args!("{table}"));
+        super::write_stderr(format_args!("{report}"));
         Ok(())
     } else {
-        out!("{table}")
+        out!("{report}")
     }
+}
+
+fn read_baseline(path: &Path) -> Result<Vec<BenchRecord>> {
+    let name = path.display().to_string();
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| Error::new(format!("bench: --baseline {name}: {e}")))?;
+    let records =
+        BenchRecord::parse_lines(&text, &name).map_err(|e| e.context("bench: --baseline"))?;
+    if records.is_empty() {
+        bail!("bench: --baseline {name}: no records (write one with bench --json)");
+    }
+    Ok(records)
+}
+
+/// One line per regression (and the exit code 1 through [`super::fail_check`]), or one line
+/// saying the run matches.
+fn compare_with_baseline(
+    baseline: &[BenchRecord],
+    path: &Path,
+    results: &[BenchResult],
+    tolerance_pct: f64,
+) -> String {
+    let run: Vec<BenchRecord> = results.iter().map(BenchResult::record).collect();
+    let found = bench::record::regressions(baseline, &run, tolerance_pct);
+    if found.is_empty() {
+        return format!(
+            "baseline: {} records match {} (tolerance {tolerance_pct}%)\n",
+            baseline.len(),
+            path.display()
+        );
+    }
+    super::fail_check();
+    found.iter().map(|r| format!("regression: {r}\n")).collect()
+}
+
+/// `PREFIX.primary.rays` and so on.
+fn rays_out_path(prefix: &Path, set: RaySet) -> PathBuf {
+    PathBuf::from(format!("{}.{}.rays", prefix.display(), set.name()))
 }
 
 fn format_table(results: &[BenchResult]) -> String {
@@ -152,6 +208,14 @@ fn format_table(results: &[BenchResult]) -> String {
     s
 }
 
+fn parse_percent(text: &str) -> Result<f64> {
+    let pct: f64 = parse_number("bench: --tolerance", text)?;
+    if !(pct.is_finite() && pct >= 0.0) {
+        bail!("bench: --tolerance: expected a percentage of 0 or more, got '{text}'");
+    }
+    Ok(pct)
+}
+
 fn parse(args: &[String]) -> Result<BenchArgs> {
     let mut a = BenchArgs {
         scene: PathBuf::new(),
@@ -163,7 +227,10 @@ fn parse(args: &[String]) -> Result<BenchArgs> {
         reps: 5,
         json: false,
         fallback: None,
+        baseline: None,
+        tolerance_pct: 0.0,
     };
+    let mut tolerance = None;
     let mut scene = None;
     let mut it = args.iter().map(String::as_str);
     while let Some(arg) = it.next() {
@@ -182,6 +249,8 @@ fn parse(args: &[String]) -> Result<BenchArgs> {
             }
             "--reps" => a.reps = parse_in_range("--reps", value("--reps")?, 1, 10_000)? as usize,
             "--json" => a.json = true,
+            "--baseline" => a.baseline = Some(PathBuf::from(value("--baseline")?)),
+            "--tolerance" => tolerance = Some(parse_percent(value("--tolerance")?)?),
             "--packet-fallback" => {
                 a.fallback =
                     Some(parse_in_range("--packet-fallback", value("--packet-fallback")?, 0, 8)?
@@ -201,6 +270,11 @@ fn parse(args: &[String]) -> Result<BenchArgs> {
         .ok_or_else(|| Error::new("bench: no scene file given (see pathtracer bench --help)"))?;
     if a.rays_in.is_some() && a.rays_out.is_some() {
         bail!("bench: --rays-out writes generated rays; it cannot be combined with --rays-in");
+    }
+    match (tolerance, &a.baseline) {
+        (Some(_), None) => bail!("bench: --tolerance needs --baseline"),
+        (Some(t), Some(_)) => a.tolerance_pct = t,
+        (None, _) => {}
     }
     if a.traversals.is_empty() {
         a.traversals = Traversal::ALL.to_vec();

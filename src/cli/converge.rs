@@ -1,7 +1,6 @@
 //! `pathtracer converge SCENE.dae --spp 1,2,4,... (--reference REF.exr | --ref-spp N)`:
 //! renders the scene at each sample count, times it, and prints its error against a reference.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use super::render::{available_threads, lighting_warnings, parse_args};
@@ -10,6 +9,7 @@ use pathtracer::accel::Accel;
 use pathtracer::convergence::{self, Point};
 use pathtracer::metrics::{self, Image};
 use pathtracer::render::RenderConfig;
+use pathtracer::staged::Outputs;
 use pathtracer::{bail, scene, Error, Result};
 
 const USAGE: &str = "\
@@ -81,12 +81,14 @@ pub fn run(args: &[String]) -> Result<()> {
         check_output("converge: --write-reference", p, &inputs)?;
     }
 
-    let scene = scene::collada::load(&cli.scene)?;
+    let scene = scene::collada::load_with_limit(&cli.scene, cli.max_scene_bytes)?;
     Accel::check_limits(&scene).map_err(|e| e.in_scene(Some(&cli.scene)))?;
     for w in scene.warnings.iter().chain(&lighting_warnings(&scene, cli.config.integrator)) {
         errln!("warning: {}: {w}", cli.scene.display());
     }
     let accel = Accel::build(&scene, cli.accel);
+    // The reference and the CSV are written together at the end: all or none.
+    let mut outputs = Outputs::new();
     let reference = match (reference_file, a.ref_spp) {
         (Some(r), _) => r,
         (None, Some(n)) => {
@@ -98,7 +100,7 @@ pub fn run(args: &[String]) -> Result<()> {
             let (image, out) = convergence::render_image(&scene, &accel, &config)?;
             errln!("[converge] reference: {n} spp in {:.2} s", out.time.as_secs_f64());
             if let Some(p) = &a.write_reference {
-                metrics::write_exr(p, &image)?;
+                metrics::stage_exr(&mut outputs, p, &image)?;
             }
             image
         }
@@ -125,8 +127,9 @@ pub fn run(args: &[String]) -> Result<()> {
         convergence::sweep(&scene, &accel, &cli.config, &reference, mask.as_deref(), &a.spps)?;
     // The CSV first: a table that cannot be printed (a full disk, `| head -1`) loses no file.
     if let Some(p) = &a.csv {
-        write_atomically(p, csv(&points).as_bytes())?;
+        outputs.stage_bytes(p, csv(&points).as_bytes())?;
     }
+    outputs.commit()?;
     out!("{}", format_table(&points, &reference))
 }
 
@@ -199,21 +202,6 @@ fn check_parent(path: &Path) -> Result<()> {
         bail!("{}: directory {} does not exist", path.display(), parent.display());
     }
     Ok(())
-}
-
-/// Writes to a temporary file beside `path` and renames it, so no half-written file remains.
-fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
-    let tmp = path.with_file_name(format!(
-        ".{}.partial",
-        path.file_name().map_or("out".into(), |n| n.to_string_lossy())
-    ));
-    let result = std::fs::File::create(&tmp)
-        .and_then(|mut f| f.write_all(bytes).and_then(|()| f.sync_all()))
-        .and_then(|()| std::fs::rename(&tmp, path));
-    result.map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        Error::new(format!("{}: cannot write: {e}", path.display()))
-    })
 }
 
 fn format_table(points: &[Point], reference: &Image) -> String {

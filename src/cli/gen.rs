@@ -1,6 +1,7 @@
 //! `pathtracer gen cornell|tori N [--seed S] -o FILE.dae`: write the project's procedural
 //! scenes (src/procedural.rs) in the course's COLLADA dialect.
 
+use std::io::Write;
 use std::path::PathBuf;
 
 use super::{check_output, parse_number};
@@ -56,11 +57,6 @@ pub fn run(args: &[String]) -> Result<()> {
         (Some(other), _) => bail!("gen: unknown scene '{other}' (expected cornell or tori)"),
         (None, _) => bail!("gen: which scene? (see gen --help)"),
     };
-    let tmp = output.with_extension("dae.tmp");
-    let fail = |e: std::io::Error| Error::new(format!("{}: cannot write: {e}", output.display()));
-    std::fs::write(&tmp, text).and_then(|()| std::fs::rename(&tmp, &output)).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        fail(e)
-    })?;
+    pathtracer::staged::write_file(&output, |w| w.write_all(text.as_bytes()))?;
     outln!("wrote {}", output.display())
 }

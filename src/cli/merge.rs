@@ -47,12 +47,17 @@ pub fn run(args: &[String]) -> Result<()> {
         read.len()
     ));
     super::render::print_render_stats(&mut report, &merged.stats, time);
-    pathtracer::film::write_image(&output, merged.width, merged.height, &merged.pixels)?;
+    // The image and, with -a, its rate image: both or neither.
+    let (w, h) = (merged.width, merged.height);
+    let mut outputs = pathtracer::staged::Outputs::new();
+    pathtracer::film::stage_image(&mut outputs, &output, w, h, &merged.pixels)?;
+    let rate = pathtracer::film::rate_image_path(&output);
+    if merged.adaptive {
+        pathtracer::film::stage_rate_image(&mut outputs, &rate, w, h, &merged.samples, merged.spp)?;
+    }
+    outputs.commit()?;
     report.print(format_args!("[PathTracer] Saved {}\n", output.display()));
     if merged.adaptive {
-        let rate = pathtracer::film::rate_image_path(&output);
-        let (w, h) = (merged.width, merged.height);
-        pathtracer::film::write_rate_image(&rate, w, h, &merged.samples, merged.spp)?;
         report.print(format_args!("[PathTracer] Sampling rate image: {}\n", rate.display()));
     }
     report.finish()

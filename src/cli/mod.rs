@@ -34,6 +34,7 @@ pub mod converge;
 pub mod gen;
 pub mod merge;
 pub mod render;
+pub mod signals;
 
 use std::fmt;
 use std::io::{self, ErrorKind, Write};
@@ -47,6 +48,14 @@ use pathtracer::{bail, Error, Result};
 /// The first failed write to stdout: later writes fail the same way without trying again
 /// (so a closed pipe gives one error, not one per line).
 static STDOUT_FAILED: OnceLock<(ErrorKind, Error)> = OnceLock::new();
+/// Set when a command's check failed (`bench --baseline` found a regression): exit code 1.
+static CHECK_FAILED: AtomicBool = AtomicBool::new(false);
+
+/// Makes the exit code 1 (a check that ran and failed, unlike an error's 2).
+pub fn fail_check() {
+    CHECK_FAILED.store(true, Ordering::Relaxed);
+}
+
 /// Set when a write to stderr failed with anything but a closed pipe: the exit code is then 2.
 static STDERR_FAILED: AtomicBool = AtomicBool::new(false);
 
@@ -102,6 +111,8 @@ pub fn exit_code(result: Result<()>) -> ExitCode {
     }
     if STDERR_FAILED.load(Ordering::Relaxed) {
         ExitCode::from(2)
+    } else if CHECK_FAILED.load(Ordering::Relaxed) {
+        ExitCode::from(1)
     } else {
         ExitCode::SUCCESS
     }
@@ -148,6 +159,10 @@ pub fn parse_in_range(flag: &str, text: &str, lo: u32, hi: u32) -> Result<u32> {
 /// file would replace the link itself, not its target), or the same file as one of `inputs`
 /// (the output would destroy it). `what` names the flag, e.g. "-f" or "--csv".
 pub fn check_output(what: &str, output: &Path, inputs: &[&Path]) -> Result<()> {
+    // Most file systems' NAME_MAX: a longer name cannot be created, so say so before the work.
+    if output.file_name().is_some_and(|n| n.len() > 255) {
+        bail!("{what} {}: the file name is longer than 255 bytes", output.display());
+    }
     let Ok(meta) = std::fs::symlink_metadata(output) else {
         return Ok(()); // Nothing there yet: nothing to destroy.
     };

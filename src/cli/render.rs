@@ -5,9 +5,11 @@ use std::time::Instant;
 
 use super::{check_output, parse_in_range, parse_number, Report};
 use pathtracer::accel::{binary_node, Accel, AccelKind, BinaryNode, BuildParams};
+use pathtracer::film;
 use pathtracer::integrator::{DirectLighting, Integrator};
 use pathtracer::render::{render, Rect, RenderConfig};
 use pathtracer::sampler::SamplerKind;
+use pathtracer::staged::Outputs;
 use pathtracer::{bail, bvh_preview, scene, Error, Result};
 
 const USAGE: &str = "\
@@ -45,6 +47,7 @@ Our options:
   --bvh-node PATH     normal shading with one node of the binary BVH tinted and its box
                       outlined; PATH is L/R steps from the root (LLR), or root; prints the
                       node's primitive count and SAH cost
+  --max-scene-bytes N refuse a scene file larger than N bytes (default 1073741824, 1 GiB)
   --info              print what the scene holds and exit
   --quiet             no progress line
 
@@ -64,6 +67,8 @@ pub(super) struct Cli {
     pub scene: PathBuf,
     pub output: Option<PathBuf>,
     pub info: bool,
+    /// The largest scene file read (`--max-scene-bytes`).
+    pub max_scene_bytes: u64,
     hemisphere: bool,
     /// `--part K/N`.
     part: Option<(u32, u32)>,
@@ -88,7 +93,7 @@ pub fn run(args: &[String]) -> Result<()> {
 }
 
 fn print_info(cli: &Cli) -> Result<()> {
-    let scene = scene::collada::load(&cli.scene)?;
+    let scene = scene::collada::load_with_limit(&cli.scene, cli.max_scene_bytes)?;
     out!("{}", scene::info::summary(&scene, cli.config.width, cli.config.height))
 }
 
@@ -111,7 +116,7 @@ fn render_to_file(cli: &Cli) -> Result<()> {
     report.print(format_args!("[PathTracer] Rendering using {threads} threads\n"));
 
     let t0 = Instant::now();
-    let scene = scene::collada::load(&cli.scene)?;
+    let scene = scene::collada::load_with_limit(&cli.scene, cli.max_scene_bytes)?;
     Accel::check_limits(&scene).map_err(|e| e.in_scene(Some(&cli.scene)))?;
     report.print(format_args!(
         "[PathTracer] Collecting primitives... Done! ({:.4} sec)\n",
@@ -158,11 +163,24 @@ fn render_to_file(cli: &Cli) -> Result<()> {
     }
 
     report.print(format_args!("[PathTracer] Saving to file: {}... ", output.display()));
-    pathtracer::film::write_image(&output, out.width, out.height, &out.pixels)?;
+    // The image and the rate image are written together: if either fails, neither replaces
+    // an existing file.
+    let mut outputs = Outputs::new();
+    film::stage_image(&mut outputs, &output, out.width, out.height, &out.pixels)?;
+    let rate = film::rate_image_path(&output);
+    if config.adaptive.is_some() {
+        film::stage_rate_image(
+            &mut outputs,
+            &rate,
+            out.width,
+            out.height,
+            &out.samples,
+            config.spp,
+        )?;
+    }
+    outputs.commit()?;
     report.print(format_args!("Done!\n"));
     if config.adaptive.is_some() {
-        let rate = pathtracer::film::rate_image_path(&output);
-        pathtracer::film::write_rate_image(&rate, out.width, out.height, &out.samples, config.spp)?;
         report.print(format_args!("[PathTracer] Sampling rate image: {}\n", rate.display()));
     }
     report.print(format_args!("[PathTracer] Job completed.\n"));
@@ -242,6 +260,7 @@ pub(super) fn parse_args(args: &[String]) -> Result<Cli> {
         scene: PathBuf::new(),
         output: None,
         info: false,
+        max_scene_bytes: scene::collada::DEFAULT_MAX_SCENE_BYTES,
         hemisphere: false,
         part: None,
         accel: AccelKind::Bvh,
@@ -310,6 +329,10 @@ pub(super) fn parse_args(args: &[String]) -> Result<Cli> {
                     )?;
                 }
                 cli.config.crop = Some(Rect { x0: c[0], y0: c[1], x1: c[2], y1: c[3] });
+            }
+            "--max-scene-bytes" => {
+                cli.max_scene_bytes =
+                    parse_byte_count("--max-scene-bytes", value("--max-scene-bytes")?)?
             }
             "--info" => cli.info = true,
             "--quiet" | "-q" => cli.config.progress = false,
@@ -403,6 +426,13 @@ fn parse_samples(text: &str) -> Result<std::ops::Range<u32>> {
         return Err(bad());
     }
     Ok(a..b)
+}
+
+fn parse_byte_count(flag: &str, text: &str) -> Result<u64> {
+    match parse_number::<u64>(flag, text)? {
+        0 => bail!("{flag}: expected a positive number of bytes, got 0"),
+        n => Ok(n),
+    }
 }
 
 fn parse_integrator(name: &str) -> Result<Integrator> {
@@ -525,6 +555,8 @@ mod tests {
             ("--bvh-node L --shading light x.dae", "conflicts"),
             ("--bvh-node L -H x.dae", "conflicts"),
             ("x.dae --bvh-node", "needs a value"),
+            ("--max-scene-bytes 0 x.dae", "--max-scene-bytes: expected a positive"),
+            ("--max-scene-bytes -1 x.dae", "--max-scene-bytes: '-1' is not a valid number"),
         ] {
             let err = parse_args(&args(a)).unwrap_err().to_string();
             assert!(err.contains(want), "{a}: got '{err}', want '{want}'");

@@ -10,4 +10,6 @@
 
 mod output;
 
-pub use output::{rate_image_path, tone_map, write_atomically, write_image, write_rate_image};
+pub use output::{
+    rate_image_path, stage_image, stage_rate_image, tone_map, write_atomically, write_image,
+};

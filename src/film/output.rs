@@ -1,12 +1,13 @@
 //! Image files: PNG (course tone map), EXR (linear), and the sampling-rate image.
 
-use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use image::{ImageFormat, Rgb32FImage, RgbImage};
 
+use crate::error::try_filled_vec;
 use crate::math::Vec3;
-use crate::{bail, Error, Result};
+use crate::staged::Outputs;
+use crate::{bail, Result};
 
 /// The course's display transform of one channel: one stop of exposure, gamma 2.2, clamped.
 #[inline]
@@ -15,23 +16,38 @@ pub fn tone_map(l: f32) -> u8 {
     (v * 255.0 + 0.5) as u8
 }
 
-/// Writes `pixels` (row-major, row 0 at the top) as PNG or EXR, chosen by the extension.
+/// Writes `pixels` (row-major, row 0 at the top) as PNG or EXR, chosen by the extension:
+/// atomically, so a reader sees the old file or the complete new one.
 pub fn write_image(path: &Path, width: u32, height: u32, pixels: &[Vec3]) -> Result<()> {
+    let mut outputs = Outputs::new();
+    stage_image(&mut outputs, path, width, height, pixels)?;
+    outputs.commit()
+}
+
+/// [`write_image`] as one file of a set written together (see [`Outputs`]).
+pub fn stage_image(
+    outputs: &mut Outputs,
+    path: &Path,
+    width: u32,
+    height: u32,
+    pixels: &[Vec3],
+) -> Result<()> {
     check_size(path, width, height, pixels.len())?;
     match extension(path).as_deref() {
         Some("png") => {
-            let mut img = RgbImage::new(width, height);
+            let mut img = display_image(width, height)?;
             for (p, l) in img.pixels_mut().zip(pixels) {
                 *p = image::Rgb([tone_map(l.x), tone_map(l.y), tone_map(l.z)]);
             }
-            save_atomically(path, |w| img.write_to(w, ImageFormat::Png))
+            outputs.stage(path, |w| img.write_to(w, ImageFormat::Png))
         }
         Some("exr") => {
-            let mut img = Rgb32FImage::new(width, height);
+            let buffer = try_filled_vec(3 * pixels.len(), 0.0, &image_name(width, height))?;
+            let mut img = Rgb32FImage::from_raw(width, height, buffer).expect("sized to fit");
             for (p, l) in img.pixels_mut().zip(pixels) {
                 *p = image::Rgb(l.to_array());
             }
-            save_atomically(path, |w| img.write_to(w, ImageFormat::OpenExr))
+            outputs.stage(path, |w| img.write_to(w, ImageFormat::OpenExr))
         }
         _ => bail!("{}: output must end in .png or .exr", path.display()),
     }
@@ -45,7 +61,8 @@ pub fn rate_image_path(output: &Path) -> PathBuf {
 
 /// The adaptive-sampling rate image: each pixel's samples / `max_samples` as a colour ramp
 /// from blue (few samples: converged early) through green to red (all samples taken).
-pub fn write_rate_image(
+pub fn stage_rate_image(
+    outputs: &mut Outputs,
     path: &Path,
     width: u32,
     height: u32,
@@ -53,11 +70,22 @@ pub fn write_rate_image(
     max_samples: u32,
 ) -> Result<()> {
     check_size(path, width, height, samples.len())?;
-    let mut img = RgbImage::new(width, height);
+    let mut img = display_image(width, height)?;
     for (p, &n) in img.pixels_mut().zip(samples) {
         *p = image::Rgb(ramp(n as f32 / max_samples.max(1) as f32));
     }
-    save_atomically(path, |w| img.write_to(w, ImageFormat::Png))
+    outputs.stage(path, |w| img.write_to(w, ImageFormat::Png))
+}
+
+/// A black 8-bit image; its size is the user's (`-r`), so a failed allocation is an error.
+fn display_image(width: u32, height: u32) -> Result<RgbImage> {
+    let len = 3 * width as usize * height as usize;
+    let buffer = try_filled_vec(len, 0u8, &image_name(width, height))?;
+    Ok(RgbImage::from_raw(width, height, buffer).expect("sized to fit"))
+}
+
+fn image_name(width: u32, height: u32) -> String {
+    format!("the {width}x{height} output image")
 }
 
 /// Blue (0) -> green (0.5) -> red (1).
@@ -82,31 +110,11 @@ fn check_size(path: &Path, width: u32, height: u32, len: usize) -> Result<()> {
     Ok(())
 }
 
-/// Writes `bytes` to `path` through a temporary name, like every image (see `save_atomically`).
+/// Writes `bytes` to `path` through a temporary name, like every output (`staged::Outputs`).
 pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
-    save_atomically(path, |w| w.write_all(bytes).map_err(image::ImageError::IoError))
-}
-
-/// Encodes into `NAME.tmp-PID` beside `path`, then renames it over `path`: readers see either
-/// the old file or the complete new one, and a failure leaves no partial file behind.
-fn save_atomically(
-    path: &Path,
-    encode: impl FnOnce(&mut BufWriter<std::fs::File>) -> image::ImageResult<()>,
-) -> Result<()> {
-    let name = path.file_name().map_or("out".into(), |n| n.to_string_lossy().into_owned());
-    let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
-    let fail = |e: &dyn std::fmt::Display| Error::io(path, "cannot write", e);
-    let result = (|| {
-        let file = std::fs::File::create(&tmp).map_err(|e| fail(&e))?;
-        let mut w = BufWriter::new(file);
-        encode(&mut w).map_err(|e| fail(&e))?;
-        w.flush().map_err(|e| fail(&e))?;
-        std::fs::rename(&tmp, path).map_err(|e| fail(&e))
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
+    let mut outputs = Outputs::new();
+    outputs.stage_bytes(path, bytes)?;
+    outputs.commit()
 }
 
 #[cfg(test)]

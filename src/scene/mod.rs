@@ -16,6 +16,9 @@ pub use material::Material;
 
 use crate::math::{Aabb, Vec3};
 
+/// Most triangles a scene may hold: what the acceleration structure can address.
+pub const MAX_TRIANGLES: usize = 1 << 24;
+
 /// An analytic sphere (CGL `sphere/radius`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sphere {

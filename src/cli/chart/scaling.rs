@@ -12,6 +12,7 @@
 
 use std::collections::BTreeMap;
 
+use pathtracer::bench::BenchRecord;
 use plotters::prelude::*;
 
 /// The fields of one bench line that the chart uses.
@@ -33,12 +34,8 @@ fn run_with(args: &[String]) -> Result<(), String> {
         return Err("usage: pathtracer chart scaling BENCH.jsonl OUT.svg".into());
     };
     let text = std::fs::read_to_string(input).map_err(|e| format!("{input}: {e}"))?;
-    let rows: Vec<Row> = text
-        .lines()
-        .filter(|l| !l.trim().is_empty())
-        .enumerate()
-        .map(|(i, l)| parse_row(l).map_err(|e| format!("{input}:{}: {e}", i + 1)))
-        .collect::<Result<_, _>>()?;
+    let records = BenchRecord::parse_lines(&text, input).map_err(|e| e.to_string())?;
+    let rows: Vec<Row> = records.iter().map(row).collect();
     if rows.is_empty() {
         return Err(format!("{input}: no bench lines"));
     }
@@ -46,33 +43,15 @@ fn run_with(args: &[String]) -> Result<(), String> {
     outln!("wrote {output}").map_err(|e| e.to_string())
 }
 
-/// The value of `"key":` in a flat JSON object as written by `BenchResult::to_json`.
-fn field<'a>(line: &'a str, key: &str) -> Result<&'a str, String> {
-    let pat = format!("\"{key}\":");
-    let start = line.find(&pat).ok_or(format!("no field {key}"))? + pat.len();
-    let rest = &line[start..];
-    let end = rest.find([',', '}']).ok_or(format!("field {key} is not terminated"))?;
-    Ok(rest[..end].trim_matches('"'))
-}
-
-fn number(line: &str, key: &str) -> Result<f64, String> {
-    let v = field(line, key)?;
-    v.parse().map_err(|_| format!("field {key}: '{v}' is not a number"))
-}
-
-fn parse_row(line: &str) -> Result<Row, String> {
-    Ok(Row {
-        triangles: number(line, "triangles")?,
-        series: format!(
-            "{} {} ({}t)",
-            field(line, "ray_set")?,
-            field(line, "traversal")?,
-            field(line, "threads")?
-        ),
-        mrays: number(line, "mrays_per_s")?,
-        build_ms: number(line, "build_ms")?,
-        bytes_per_triangle: number(line, "bytes_per_triangle")?,
-    })
+/// What the chart draws of one bench record.
+fn row(r: &BenchRecord) -> Row {
+    Row {
+        triangles: r.triangles as f64,
+        series: format!("{} {} ({}t)", r.ray_set, r.traversal, r.threads),
+        mrays: r.mrays_per_s,
+        build_ms: r.build_ms,
+        bytes_per_triangle: r.bytes_per_triangle,
+    }
 }
 
 /// 10000 -> "10k", 4000000 -> "4M".
