@@ -50,9 +50,7 @@ impl Outputs {
         path: &Path,
         write: impl FnOnce(&mut BufWriter<File>) -> std::result::Result<(), E>,
     ) -> Result<()> {
-        let fail = |e: &dyn std::fmt::Display| {
-            Error::new(format!("{}: cannot write: {e}", path.display()))
-        };
+        let fail = |e: &dyn std::fmt::Display| Error::io(path, "cannot write", e);
         let tmp = temporary_path(path);
         let file = {
             let mut registry = temporaries();
@@ -81,8 +79,7 @@ impl Outputs {
         let mut result = Ok(());
         for (tmp, path) in &staged {
             if result.is_ok() {
-                result = std::fs::rename(tmp, path)
-                    .map_err(|e| Error::new(format!("{}: cannot write: {e}", path.display())));
+                result = std::fs::rename(tmp, path).map_err(|e| Error::io(path, "cannot write", e));
             }
             if result.is_err() {
                 let _ = std::fs::remove_file(tmp);
