@@ -150,6 +150,18 @@ fn the_scene_file_is_read_only_up_to_its_size_limit() {
     // converge takes the render flags, this one too.
     let converge = ["converge", s, "--spp", "1", "--ref-spp", "2", "--max-scene-bytes", &below];
     assert_one_line_error(&pathtracer(&converge), "scene size limit");
+    // So do bench and chart accuracy, which load scenes too.
+    let bench = ["bench", s, "--reps", "1", "--max-scene-bytes", &below];
+    assert_one_line_error(&pathtracer(&bench), "scene size limit");
+    let dir = scratch_dir("chart-limit");
+    let d = dir.to_str().unwrap();
+    let chart =
+        ["chart", "accuracy", s, d, "--spp", "1", "--ref-spp", "2", "--max-scene-bytes", &below];
+    assert_one_line_error(&pathtracer(&chart), "scene size limit");
+    assert_one_line_error(
+        &pathtracer(&["bench", s, "--max-scene-bytes", "0"]),
+        "--max-scene-bytes",
+    );
 }
 
 #[test]

@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::{parse_in_range, parse_number};
+use super::{parse_byte_count, parse_in_range, parse_number};
 use pathtracer::accel::{Accel, AccelKind};
 use pathtracer::bench::{self, BenchRecord, BenchResult, RaySet, Traversal};
 use pathtracer::staged::Outputs;
@@ -28,7 +28,8 @@ Options:
   --baseline FILE       compare the exact counters and checksums with FILE (written by
                         --json): each regression on one line, then exit code 1
   --tolerance PCT       with --baseline: node and triangle tests may rise, and hits, t_sum
-                        and rays move, by at most PCT percent (default 0: exact)";
+                        and rays move, by at most PCT percent (default 0: exact)
+  --max-scene-bytes N   refuse a scene file larger than N bytes (default 1073741824, 1 GiB)";
 
 struct BenchArgs {
     scene: PathBuf,
@@ -42,6 +43,7 @@ struct BenchArgs {
     fallback: Option<u32>,
     baseline: Option<PathBuf>,
     tolerance_pct: f64,
+    max_scene_bytes: u64,
 }
 
 pub fn run(args: &[String]) -> Result<()> {
@@ -51,7 +53,7 @@ pub fn run(args: &[String]) -> Result<()> {
     let a = parse(args)?;
     // A bad baseline fails before the work, not after it.
     let baseline = a.baseline.as_deref().map(read_baseline).transpose()?;
-    let loaded = scene::collada::load(&a.scene)?;
+    let loaded = scene::collada::load_with_limit(&a.scene, a.max_scene_bytes)?;
     let scene = bench::triangles_only(&loaded);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(a.threads)
@@ -229,6 +231,7 @@ fn parse(args: &[String]) -> Result<BenchArgs> {
         fallback: None,
         baseline: None,
         tolerance_pct: 0.0,
+        max_scene_bytes: scene::collada::DEFAULT_MAX_SCENE_BYTES,
     };
     let mut tolerance = None;
     let mut scene = None;
@@ -249,6 +252,10 @@ fn parse(args: &[String]) -> Result<BenchArgs> {
             }
             "--reps" => a.reps = parse_in_range("--reps", value("--reps")?, 1, 10_000)? as usize,
             "--json" => a.json = true,
+            "--max-scene-bytes" => {
+                a.max_scene_bytes =
+                    parse_byte_count("--max-scene-bytes", value("--max-scene-bytes")?)?
+            }
             "--baseline" => a.baseline = Some(PathBuf::from(value("--baseline")?)),
             "--tolerance" => tolerance = Some(parse_percent(value("--tolerance")?)?),
             "--packet-fallback" => {

@@ -243,3 +243,11 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
+
+/// A positive number of bytes for `flag` (`--max-scene-bytes`).
+pub(crate) fn parse_byte_count(flag: &str, text: &str) -> Result<u64> {
+    match parse_number::<u64>(flag, text)? {
+        0 => bail!("{flag}: expected a positive number of bytes, got 0"),
+        n => Ok(n),
+    }
+}

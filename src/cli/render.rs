@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use super::{check_output, parse_in_range, parse_number, Report};
+use super::{check_output, parse_byte_count, parse_in_range, parse_number, Report};
 use pathtracer::accel::{binary_node, Accel, AccelKind, BinaryNode, BuildParams};
 use pathtracer::film;
 use pathtracer::integrator::{DirectLighting, Integrator};
@@ -426,13 +426,6 @@ fn parse_samples(text: &str) -> Result<std::ops::Range<u32>> {
         return Err(bad());
     }
     Ok(a..b)
-}
-
-fn parse_byte_count(flag: &str, text: &str) -> Result<u64> {
-    match parse_number::<u64>(flag, text)? {
-        0 => bail!("{flag}: expected a positive number of bytes, got 0"),
-        n => Ok(n),
-    }
 }
 
 fn parse_integrator(name: &str) -> Result<Integrator> {

@@ -8,7 +8,7 @@
 //!
 //! Options after the two paths: `-r W H` (default 160 120), `--ref-spp N` (default 1024),
 //! `--spp LIST` (default 1,2,4,8,16,32,64), `-t N` (default 2), `--depths LIST` (default 1,5),
-//! `--peer FILE.jsonl`.
+//! `--peer FILE.jsonl`, `--max-scene-bytes N` (default 1 GiB, as for rendering).
 //!
 //! Peer runs. `--peer FILE.jsonl` adds another renderer's measurements (JSON Lines from an
 //! external measuring tool, one render per line; the fields are in `peer.rs`): on the chart of
@@ -67,6 +67,7 @@ fn run_with(args: &[String]) -> Result<(), String> {
     let mut spps: Vec<u32> = vec![1, 2, 4, 8, 16, 32, 64];
     let mut depths: Vec<u32> = vec![1, 5];
     let mut peer_path: Option<PathBuf> = None;
+    let mut max_scene_bytes = scene::collada::DEFAULT_MAX_SCENE_BYTES;
     // Every flag error names its flag and the text it got.
     let num = |flag: &str, s: Option<&String>| -> Result<u32, String> {
         let s = s.ok_or(format!("{flag}: expected a positive number, got nothing"))?;
@@ -101,6 +102,11 @@ fn run_with(args: &[String]) -> Result<(), String> {
                 let file = args.get(i + 1).ok_or("--peer: expected a JSON Lines file")?;
                 peer_path = Some(PathBuf::from(file));
             }
+            "--max-scene-bytes" => {
+                let text = args.get(i + 1).map_or("", String::as_str);
+                max_scene_bytes = crate::cli::parse_byte_count("--max-scene-bytes", text)
+                    .map_err(|e| e.to_string())?;
+            }
             other => return Err(format!("unknown option '{other}'")),
         }
         i += 2;
@@ -122,7 +128,8 @@ fn run_with(args: &[String]) -> Result<(), String> {
         }
         None => Vec::new(),
     };
-    let scene = scene::collada::load(&scene_path).map_err(|e| e.to_string())?;
+    let scene =
+        scene::collada::load_with_limit(&scene_path, max_scene_bytes).map_err(|e| e.to_string())?;
     Accel::check_limits(&scene).map_err(|e| e.in_scene(Some(&scene_path)).to_string())?;
     let accel = Accel::build(&scene, AccelKind::Bvh);
     let name = scene_path.file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned());

@@ -9,7 +9,7 @@ use pathtracer::{bail, Result};
 
 const USAGE: &str = "\
 Usage: pathtracer chart accuracy SCENE.dae OUT_DIR [-r W H] [--ref-spp N] [--spp LIST] [-t N] [--depths LIST]
-                                  [--peer FILE.jsonl]
+                                  [--peer FILE.jsonl] [--max-scene-bytes N]
        pathtracer chart scaling BENCH.jsonl OUT.svg
 
   accuracy   relative RMSE against render time for every integrator, one SVG (and CSV) per depth;
