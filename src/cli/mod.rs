@@ -204,6 +204,14 @@ fn same_file(output: &Path, meta: &std::fs::Metadata, input: &Path) -> bool {
     }
 }
 
+/// A positive number of bytes for `flag` (`--max-scene-bytes`).
+pub(crate) fn parse_byte_count(flag: &str, text: &str) -> Result<u64> {
+    match parse_number::<u64>(flag, text)? {
+        0 => bail!("{flag}: expected a positive number of bytes, got 0"),
+        n => Ok(n),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -241,13 +249,5 @@ mod tests {
             assert!(err(&link, &[]).contains("symbolic link"));
         }
         std::fs::remove_dir_all(&dir).unwrap();
-    }
-}
-
-/// A positive number of bytes for `flag` (`--max-scene-bytes`).
-pub(crate) fn parse_byte_count(flag: &str, text: &str) -> Result<u64> {
-    match parse_number::<u64>(flag, text)? {
-        0 => bail!("{flag}: expected a positive number of bytes, got 0"),
-        n => Ok(n),
     }
 }
