@@ -180,3 +180,26 @@ fn sigint_during_a_render_exits_130_without_files() {
     assert_eq!(names(&dir), Vec::<String>::new());
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn chart_accuracy_leaves_no_half_written_chart() {
+    let dir = scratch_dir("chart");
+    let d = dir.to_str().unwrap();
+    let s = cornell();
+    let args = ["chart", "accuracy", &s, d, "-r", "8", "6", "--spp", "1,2", "--ref-spp", "4"];
+    // A chart is about 30 kB: past the 2048-byte limit, so nothing may be left, not even the
+    // first depth's chart or a truncated one (plotters used to write the SVG in place).
+    let out = pathtracer_with_small_files(&args);
+    assert_eq!(out.status.code(), Some(2));
+    // Progress lines come first; the error is the last line, and the only one.
+    let err = String::from_utf8_lossy(&out.stderr);
+    let errors: Vec<&str> = err.lines().filter(|l| l.starts_with("error:")).collect();
+    assert_eq!(errors.len(), 1, "{err}");
+    assert!(errors[0].contains("accuracy_cornell_m1.svg: cannot write"), "{err}");
+    assert_eq!(names(&dir), Vec::<String>::new(), "a file was left");
+    let ok = pathtracer(&args);
+    assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
+    let want = ["m1.csv", "m1.svg", "m5.csv", "m5.svg"].map(|n| format!("accuracy_cornell_{n}"));
+    assert_eq!(names(&dir), want);
+    std::fs::remove_dir_all(&dir).unwrap();
+}

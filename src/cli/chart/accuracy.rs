@@ -41,6 +41,7 @@ use pathtracer::integrator::{DirectLighting, Integrator};
 use pathtracer::metrics::Image;
 use pathtracer::render::RenderConfig;
 use pathtracer::scene::{self, Scene};
+use pathtracer::staged::Outputs;
 use plotters::element::DashedPathElement;
 use plotters::prelude::*;
 
@@ -136,6 +137,8 @@ fn run_with(args: &[String]) -> Result<(), String> {
 
     // The summaries go to stdout through a Report: a failed print does not stop the charts.
     let mut report = Report::default();
+    let mut outputs = Outputs::new();
+    let mut written = Vec::new();
     for &depth in &depths {
         let base = RenderConfig {
             width: w,
@@ -191,13 +194,20 @@ fn run_with(args: &[String]) -> Result<(), String> {
         );
         let peers = peer::series(&peer_records, depth);
         let svg = out_dir.join(format!("accuracy_{name}_m{depth}.svg"));
-        plot(&svg, &title, &curves, &peers).map_err(|e| format!("{}: {e}", svg.display()))?;
+        let mut text = String::new();
+        plot(&mut text, &title, &curves, &peers).map_err(|e| format!("{}: {e}", svg.display()))?;
+        outputs.stage_bytes(&svg, text.as_bytes()).map_err(|e| e.to_string())?;
         let csv = out_dir.join(format!("accuracy_{name}_m{depth}.csv"));
         let peer_csv = peer_path.as_deref().map(|p| (p, peers.as_slice()));
-        std::fs::write(&csv, to_csv(&curves, peer_csv))
-            .map_err(|e| format!("{}: {e}", csv.display()))?;
+        let table = to_csv(&curves, peer_csv);
+        outputs.stage_bytes(&csv, table.as_bytes()).map_err(|e| e.to_string())?;
         print_summary(&mut report, depth, &scene, &curves, &peers);
-        errln!("wrote {} and {}", svg.display(), csv.display());
+        written.push(format!("{} and {}", svg.display(), csv.display()));
+    }
+    // Every chart and table of the run, or none of them.
+    outputs.commit().map_err(|e| e.to_string())?;
+    for w in written {
+        errln!("wrote {w}");
     }
     report.finish().map_err(|e| e.to_string())
 }
@@ -312,7 +322,7 @@ const PEER_COLORS: [RGBColor; 6] = [
 ];
 
 fn plot(
-    path: &Path,
+    out: &mut String,
     title: &str,
     curves: &[Curve],
     peers: &[Series],
@@ -327,7 +337,7 @@ fn plot(
         e0 = e0.min(e);
         e1 = e1.max(e);
     }
-    let root = SVGBackend::new(path, (900, 600)).into_drawing_area();
+    let root = SVGBackend::with_string(out, (900, 600)).into_drawing_area();
     root.fill(&WHITE)?;
     let mut chart = ChartBuilder::on(&root)
         .caption(title, ("sans-serif", 20))
