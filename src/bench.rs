@@ -160,10 +160,17 @@ pub fn stage_rays(
     })
 }
 
+/// The largest ray file `read_rays` accepts: 2^26 rays (2 GiB), eight times the largest
+/// standard set, so that a device or a pipe (`/dev/zero`) cannot grow without bound.
+pub const MAX_RAY_FILE_BYTES: u64 = (RECORD as u64) << 26;
+
 /// Reads a ray file; every record must be whole and every origin and direction finite.
 pub fn read_rays(path: &Path) -> crate::Result<Vec<Ray>> {
-    let bytes =
-        std::fs::read(path).map_err(|e| crate::Error::new(format!("{}: {e}", path.display())))?;
+    let too_large = || {
+        let message = format!("larger than the ray file limit of {MAX_RAY_FILE_BYTES} bytes");
+        crate::Error::new(message).in_scene(Some(path))
+    };
+    let bytes = crate::error::read_capped(path, MAX_RAY_FILE_BYTES, too_large)?;
     if bytes.len() % RECORD != 0 {
         crate::bail!(
             "{}: {} bytes is not a whole number of 32-byte ray records",

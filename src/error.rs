@@ -96,6 +96,39 @@ pub fn try_filled_vec<T: Clone>(len: usize, value: T, what: &str) -> Result<Vec<
     Ok(v)
 }
 
+/// The bytes of the file at `path`, refusing it (with `too_large()`) once it holds more than
+/// `max_bytes`: a regular file is judged by its size before reading, anything else (a pipe, a
+/// device such as `/dev/zero`) is read only up to the limit, and memory that cannot be had is
+/// an error, never an abort.
+pub fn read_capped(path: &Path, max_bytes: u64, too_large: impl Fn() -> Error) -> Result<Vec<u8>> {
+    use std::io::Read;
+    let cannot_read = |e: std::io::Error| Error::io(path, "cannot read", e);
+    let file = std::fs::File::open(path).map_err(cannot_read)?;
+    if file.metadata().is_ok_and(|m| m.is_file() && m.len() > max_bytes) {
+        return Err(too_large());
+    }
+    let mut bytes = Vec::new();
+    let mut reader = file.take(max_bytes.saturating_add(1));
+    let mut chunk = vec![0u8; 1 << 16];
+    loop {
+        let n = match reader.read(&mut chunk) {
+            Ok(0) => break,
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(cannot_read(e)),
+        };
+        bytes.try_reserve(n).map_err(|_| {
+            let reason = format!("out of memory after {} bytes", bytes.len());
+            Error::io(path, "cannot read", reason)
+        })?;
+        bytes.extend_from_slice(&chunk[..n]);
+    }
+    if bytes.len() as u64 > max_bytes {
+        return Err(too_large());
+    }
+    Ok(bytes)
+}
+
 /// `1717986918` -> "1.6 GiB".
 fn human_bytes(bytes: usize) -> String {
     let units = ["bytes", "KiB", "MiB", "GiB", "TiB"];

@@ -211,3 +211,13 @@ fn skinned_instances_are_counted_too() {
     let e = collada::parse(&text).unwrap_err().to_string();
     assert!(e.contains("32702464 triangles (counting every instance)"), "{e}");
 }
+
+#[test]
+fn a_ray_file_from_an_endless_device_is_a_one_line_error() {
+    let scene = cornell();
+    let s = scene.to_str().unwrap();
+    // Reading stops at the memory it can have (or at the 2 GiB cap), never an abort.
+    let args = ["bench", s, "--ray-set", "primary", "--rays-in", "/dev/zero", "--reps", "1"];
+    let out = pathtracer_within(200, &args);
+    assert_one_line_error(&out, "/dev/zero: cannot read: out of memory after");
+}

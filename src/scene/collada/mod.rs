@@ -14,7 +14,6 @@ mod nodes;
 mod xml;
 
 use std::collections::HashMap;
-use std::io::Read;
 use std::path::Path;
 
 use roxmltree::{Document, Node};
@@ -46,38 +45,14 @@ pub fn load_with_limit(path: &Path, max_bytes: u64) -> Result<Scene> {
     parse(&text).map_err(|e| e.in_scene(Some(path)))
 }
 
-/// The file's text, refusing it once it holds more than `max_bytes`. A regular file is judged
-/// by its size before reading; anything else (a pipe, a device) is read up to the limit.
+/// The file's text, refusing it once it holds more than `max_bytes` (`error::read_capped`).
 fn read_capped(path: &Path, max_bytes: u64) -> Result<String> {
-    let cannot_read = |e: std::io::Error| Error::io(path, "cannot read", e);
     let too_large = || {
         Error::new(format!(
             "larger than the scene size limit of {max_bytes} bytes (--max-scene-bytes raises it)"
         ))
     };
-    let file = std::fs::File::open(path).map_err(cannot_read)?;
-    if file.metadata().is_ok_and(|m| m.is_file() && m.len() > max_bytes) {
-        return Err(too_large());
-    }
-    let mut bytes = Vec::new();
-    let mut reader = file.take(max_bytes.saturating_add(1));
-    let mut chunk = vec![0u8; 1 << 16];
-    loop {
-        let n = match reader.read(&mut chunk) {
-            Ok(0) => break,
-            Ok(n) => n,
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
-            Err(e) => return Err(cannot_read(e)),
-        };
-        bytes.try_reserve(n).map_err(|_| {
-            let reason = format!("out of memory after {} bytes", bytes.len());
-            Error::io(path, "cannot read", reason)
-        })?;
-        bytes.extend_from_slice(&chunk[..n]);
-    }
-    if bytes.len() as u64 > max_bytes {
-        return Err(too_large());
-    }
+    let bytes = crate::error::read_capped(path, max_bytes, too_large)?;
     String::from_utf8(bytes).map_err(|e| {
         Error::new(format!(
             "not a text file (invalid UTF-8 at byte {})",
