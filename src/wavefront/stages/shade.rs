@@ -10,7 +10,8 @@ use crate::scene::Material;
 /// Scratch space of the shade stage, reused across depths and tiles.
 #[derive(Default)]
 pub struct ShadeScratch {
-    surfaces: Vec<Option<Surface>>,
+    /// The chunk's surfaces (`None` for misses), and whether each went into a lane.
+    surfaces: Vec<(Option<Surface>, bool)>,
     lanes: DiffuseLanes,
     lane_out: DiffuseOutputs,
 }
@@ -44,11 +45,12 @@ pub fn shade(
         for q in chunk.clone() {
             let (ray, path) = (&rays.rays[q], rays.path[q]);
             let surface = hits[q].as_ref().map(|hit| Surface::at(ctx.scene, ray, hit));
-            if let Some(albedo) = surface.and_then(|s| lane_albedo(ctx, lanes_apply, &s)) {
+            let albedo = surface.and_then(|s| lane_albedo(ctx, lanes_apply, &s));
+            if let (Some(s), Some(albedo)) = (&surface, albedo) {
                 let throughput = paths.throughput[path as usize];
-                scratch.lanes.push(path, q, ray, surface.as_ref().unwrap(), throughput, albedo);
+                scratch.lanes.push(path, q, ray, s, throughput, albedo);
             }
-            scratch.surfaces.push(surface);
+            scratch.surfaces.push((surface, albedo.is_some()));
         }
         in_lanes += scratch.lanes.len as u64;
         if let (true, Some(direct)) = (scratch.lanes.len > 0, ctx.integrator.direct_lighting()) {
@@ -63,10 +65,10 @@ pub fn shade(
             );
         }
         let mut lane = 0;
-        for (q, surface) in chunk.zip(&scratch.surfaces) {
+        for (q, (surface, in_lane)) in chunk.zip(&scratch.surfaces) {
             let (ray, path) = (&rays.rays[q], rays.path[q]);
             match surface {
-                Some(s) if lane_albedo(ctx, lanes_apply, s).is_some() => {
+                Some(_) if *in_lane => {
                     diffuse::queue_lane(&scratch.lane_out, lane, path, paths, &mut out);
                     lane += 1;
                 }
