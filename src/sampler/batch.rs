@@ -7,7 +7,7 @@
 //! one at a time inside the shading code they cost more than the area-light sampling itself
 //! (PERF.md "Whole renders").
 
-use super::{sobol, splitmix64, Decision, PathSampler, SamplerKind};
+use super::{sobol, Decision, PathSampler, SamplerKind};
 
 /// One 2D number per (queued path, planned slot), in the order the slots were planned.
 #[derive(Default)]
@@ -16,10 +16,10 @@ pub struct DrawBatch {
     /// Per slot: the decision, its draw number and how many draws of it a vertex takes.
     slots: Vec<(Decision, u32, u32)>,
     /// Per slot: the Sobol dimension key of `(decision, depth)`.
-    dimensions: Vec<u64>,
+    dimensions: Vec<u32>,
     numbers: Vec<[f32; 2]>,
     /// Scratch for the Sobol pass: per number, its sequence key and index.
-    keys: Vec<u64>,
+    keys: Vec<u32>,
     indices: Vec<u32>,
 }
 
@@ -91,11 +91,26 @@ impl DrawBatch {
     }
 }
 
-/// `out[k] = sobol_2d(splitmix64(keys[k]), indices[k])`: branch-free and independent per k, so
-/// it compiles to SIMD over 8 lanes.
-fn sobol_pass(keys: &[u64], indices: &[u32], out: &mut [[f32; 2]]) {
-    for ((o, &key), &index) in out.iter_mut().zip(keys).zip(indices) {
-        *o = sobol::sobol_2d(splitmix64(key), index);
+/// `out[k] = sobol_2d(mix32(keys[k]), indices[k])`: branch-free, independent per k and all in
+/// 32-bit integers, so it compiles to SIMD over 8 lanes.
+fn sobol_pass(keys: &[u32], indices: &[u32], out: &mut [[f32; 2]]) {
+    const W: usize = 8;
+    let blocks = out.chunks_exact_mut(W).zip(keys.chunks_exact(W).zip(indices.chunks_exact(W)));
+    for (o, (k, i)) in blocks {
+        // Fixed-size blocks: the compiler turns the lane loop into 8-wide integer SIMD.
+        let (k, i): (&[u32; W], &[u32; W]) = (k.try_into().unwrap(), i.try_into().unwrap());
+        let mut x = [0.0f32; W];
+        let mut y = [0.0f32; W];
+        for l in 0..W {
+            [x[l], y[l]] = sobol::sobol_2d(sobol::mix32(k[l]), i[l]);
+        }
+        for l in 0..W {
+            o[l] = [x[l], y[l]];
+        }
+    }
+    let done = out.len() / W * W;
+    for ((o, &key), &index) in out[done..].iter_mut().zip(&keys[done..]).zip(&indices[done..]) {
+        *o = sobol::sobol_2d(sobol::mix32(key), index);
     }
 }
 

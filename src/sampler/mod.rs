@@ -58,16 +58,20 @@ pub enum Decision {
 }
 
 impl Decision {
-    fn dimension(self, depth: u32) -> u64 {
+    /// The decision's Sobol dimension at `depth`, hashed: a pixel's sequence key is this
+    /// XOR the pixel's key, mixed once more (`sobol::mix32`).
+    fn dimension(self, depth: u32) -> u32 {
         let (slot, extra) = match self {
-            Decision::CameraJitter => (0u64, 0u32),
+            Decision::CameraJitter => (0u32, 0u32),
             Decision::SceneLight(i) => (1, i),
             Decision::Emitter => (2, 0),
             Decision::Hemisphere => (3, 0),
             Decision::Bsdf => (4, 0),
             Decision::LobeAndRoulette => (5, 0),
         };
-        ((depth as u64) << 40) | (slot << 32) | extra as u64
+        // Depth below 2^16 and light index below 2^13 (both far beyond any render) keep the
+        // dimensions distinct before the (bijective) mix.
+        sobol::mix32((depth << 16) ^ (slot << 13) ^ extra)
     }
 }
 
@@ -77,7 +81,7 @@ pub struct PathSampler {
     /// The independent stream (all numbers of `SamplerKind::Independent`).
     pub rng: Pcg32,
     /// Hash of (seed, pixel): the root of this pixel's Sobol keys.
-    pixel_key: u64,
+    pixel_key: u32,
     /// The sample's index within its pixel.
     sample: u32,
 }
@@ -86,7 +90,7 @@ impl PathSampler {
     pub fn new(seed: u64, pixel: u64, sample: u32, spp: u32) -> PathSampler {
         PathSampler {
             rng: Pcg32::for_index(seed, pixel * spp as u64 + sample as u64),
-            pixel_key: splitmix64(seed ^ splitmix64(pixel).rotate_left(17)),
+            pixel_key: splitmix64(seed ^ splitmix64(pixel).rotate_left(17)) as u32,
             sample,
         }
     }
@@ -106,7 +110,7 @@ impl PathSampler {
         match kind {
             SamplerKind::Independent => [self.rng.next_f32(), self.rng.next_f32()],
             SamplerKind::Sobol => {
-                let key = splitmix64(self.pixel_key ^ decision.dimension(depth));
+                let key = sobol::mix32(self.pixel_key ^ decision.dimension(depth));
                 let index = (self.sample as u64 * count as u64 + sub as u64) as u32;
                 sobol::sobol_2d(key, index)
             }
