@@ -76,6 +76,16 @@ pub struct Surface {
     pub t: f32,
 }
 
+/// The material of primitive `prim` (`Hit::prim`), without reconstructing its surface.
+#[inline]
+pub fn surface_material(scene: &Scene, prim: u32) -> u32 {
+    if prim::is_sphere(prim) {
+        scene.spheres[prim::sphere_index(prim) as usize].material
+    } else {
+        scene.triangle_materials[prim::triangle_index(prim) as usize]
+    }
+}
+
 impl Surface {
     pub fn at(scene: &Scene, ray: &Ray, hit: &Hit) -> Surface {
         let p = ray.at(hit.t);

@@ -13,10 +13,11 @@ use std::f32::consts::{FRAC_1_PI, TAU};
 
 use super::lights::TriangleEmitter;
 use super::path::{DirectLighting, DrawLayout, RR_START_DEPTH};
-use super::{PathState, RenderContext, ShadeOutputs, Surface};
-use crate::math::{Ray, Vec3, COS_COEFFS, SIN_COEFFS};
+use super::{PathState, RenderContext, ShadeOutputs};
+use crate::geometry::prim;
+use crate::math::{Hit, Ray, Vec3, COS_COEFFS, SIN_COEFFS};
 use crate::sampler::DrawBatch;
-use crate::scene::Light;
+use crate::scene::{Light, Scene};
 use crate::simd::{SimdF32, VFloat};
 
 /// Vertices shaded together.
@@ -186,17 +187,26 @@ fn offset_origin(p: V3, ng: V3, dir: V3, scene_epsilon: f32) -> V3 {
     p.add(ng.scale(side * ray_epsilon(p, scene_epsilon)))
 }
 
-/// Up to `LANES` diffuse vertices, loaded lane by lane.
+/// Up to `LANES` diffuse vertices, loaded lane by lane: each lane's ray and hit, and what
+/// reconstructing its surface reads (`load_surfaces`), so that `Surface::at` runs in lanes.
 #[derive(Default)]
 pub struct DiffuseLanes {
     pub len: usize,
     pub path: [u32; LANES],
     /// Queue index of each vertex's ray (its random numbers in the `DrawBatch`).
     queue: [usize; LANES],
-    p: [Lanes; 3],
-    ng: [Lanes; 3],
-    ns: [Lanes; 3],
+    prim: [u32; LANES],
+    origin: [Lanes; 3],
     dir: [Lanes; 3],
+    t: Lanes,
+    /// Barycentrics of corners 1 and 2 (triangles); `u` holds the radius for spheres.
+    u: Lanes,
+    v: Lanes,
+    /// Lanes whose hit is a sphere, as a bit mask.
+    spheres: u32,
+    /// A triangle's corner positions and normals; a sphere's centre is `corners[0]`.
+    corners: [[Lanes; 3]; 3],
+    normals: [[Lanes; 3]; 3],
     throughput: [Lanes; 3],
     albedo: [Lanes; 3],
 }
@@ -219,17 +229,17 @@ impl DiffuseLanes {
         path: u32,
         queue: usize,
         ray: &Ray,
-        s: &Surface,
+        hit: &Hit,
         throughput: Vec3,
         albedo: Vec3,
     ) {
         let l = self.len;
         self.path[l] = path;
         self.queue[l] = queue;
-        put(&mut self.p, l, s.p);
-        put(&mut self.ng, l, s.ng);
-        put(&mut self.ns, l, s.ns);
+        self.prim[l] = hit.prim;
+        put(&mut self.origin, l, ray.origin);
         put(&mut self.dir, l, ray.dir);
+        (self.t[l], self.u[l], self.v[l]) = (hit.t, hit.u, hit.v);
         put(&mut self.throughput, l, throughput);
         put(&mut self.albedo, l, albedo);
         self.len += 1;
@@ -240,17 +250,41 @@ impl DiffuseLanes {
         for l in self.len..LANES {
             self.path[l] = self.path[0];
             self.queue[l] = self.queue[0];
-            for a in [
-                &mut self.p,
-                &mut self.ng,
-                &mut self.ns,
-                &mut self.dir,
-                &mut self.throughput,
-                &mut self.albedo,
-            ] {
+            self.prim[l] = self.prim[0];
+            for a in [&mut self.t, &mut self.u, &mut self.v] {
+                a[l] = a[0];
+            }
+            for a in [&mut self.origin, &mut self.dir, &mut self.throughput, &mut self.albedo] {
                 for c in a.iter_mut() {
                     c[l] = c[0];
                 }
+            }
+        }
+    }
+
+    /// Reads what `Surface::at` reads for every lane's hit, in two passes of independent loads
+    /// (first the triangles' vertex indices, then their positions and normals), so that the
+    /// cache misses of different lanes overlap instead of waiting on each other.
+    fn load_surfaces(&mut self, scene: &Scene) {
+        let mut corners = [[0u32; 3]; LANES];
+        self.spheres = 0;
+        for (l, c) in corners.iter_mut().enumerate() {
+            if prim::is_sphere(self.prim[l]) {
+                self.spheres |= 1 << l;
+            } else {
+                *c = scene.triangles[prim::triangle_index(self.prim[l]) as usize];
+            }
+        }
+        for (l, c) in corners.iter().enumerate() {
+            if self.spheres & (1 << l) != 0 {
+                let s = &scene.spheres[prim::sphere_index(self.prim[l]) as usize];
+                put(&mut self.corners[0], l, s.center);
+                self.u[l] = s.radius;
+                continue;
+            }
+            for (k, &vertex) in c.iter().enumerate() {
+                put(&mut self.corners[k], l, scene.positions[vertex as usize]);
+                put(&mut self.normals[k], l, scene.normals[vertex as usize]);
             }
         }
     }
@@ -367,6 +401,7 @@ pub fn shade_diffuse(
     out: &mut DiffuseOutputs,
 ) {
     lanes.pad();
+    lanes.load_surfaces(ctx.scene);
     let v = vertex(lanes);
     let number = |slot: usize, c: usize| -> V {
         let a: Lanes = std::array::from_fn(|l| draws.of(lanes.queue[l])[slot][c]);
@@ -408,13 +443,32 @@ pub fn shade_diffuse(
     }
 }
 
+/// `Surface::at` in lanes: the hit point, the geometric normal and the shading normal.
+#[inline(always)]
+fn surface(lanes: &DiffuseLanes, origin: V3, dir: V3) -> (V3, V3, V3) {
+    let p = origin.add(dir.scale(V::load(&lanes.t)));
+    let [a, b, c] = lanes.corners.each_ref().map(V3::load);
+    let [na, nb, nc] = lanes.normals.each_ref().map(V3::load);
+    let (u, v) = (V::load(&lanes.u), V::load(&lanes.v));
+    let ng = normalize_or(b.sub(a).cross(c.sub(a)), V3::splat(Vec3::Y));
+    let w = V::splat(1.0) - u - v;
+    let ns = normalize_or(na.scale(w).add(nb.scale(u)).add(nc.scale(v)), ng);
+    if lanes.spheres == 0 {
+        return (p, ng, ns);
+    }
+    // A sphere's normal, with the radius in `u`.
+    let n = normalize_or(p.sub(a).div(u), V3::splat(Vec3::Y));
+    let sphere = V::from_bitmask(lanes.spheres);
+    (p, V3::select(sphere, n, ng), V3::select(sphere, n, ns))
+}
+
 /// The vertex of `path::shade_hit`: normals turned towards the viewer, the shading frame.
 #[inline(always)]
 fn vertex(lanes: &DiffuseLanes) -> Vertex {
     let zero = V::splat(0.0);
     let dir = V3::load(&lanes.dir);
     let neg_dir = V3 { x: neg(dir.x), y: neg(dir.y), z: neg(dir.z) };
-    let (ng_s, ns_s) = (V3::load(&lanes.ng), V3::load(&lanes.ns));
+    let (p, ng_s, ns_s) = surface(lanes, V3::load(&lanes.origin), dir);
     let cos_out = neg(ng_s.dot(dir));
     let sign = V::select(cos_out.simd_lt(zero), V::splat(-1.0), V::splat(1.0));
     let ng = ng_s.scale(sign);
@@ -423,7 +477,7 @@ fn vertex(lanes: &DiffuseLanes) -> Vertex {
     let frame = Frame::new(ns);
     let wo = neg_dir.to_local(&frame);
     Vertex {
-        p: V3::load(&lanes.p),
+        p,
         ng,
         frame,
         wo,
@@ -487,7 +541,7 @@ fn sample_triangle_emitter(ctx: &RenderContext, p: V3, u0: V, u1: V) -> LightLan
     let (b1, b2) = (V::splat(1.0) - s, u1 * s);
     let (ab, ac) = (b.sub(a), c.sub(a));
     let q = a.add(ab.scale(b1)).add(ac.scale(b2));
-    let nq = normalize_or_y(ab.cross(ac));
+    let nq = normalize_or(ab.cross(ac), V3::splat(Vec3::Y));
     let d = q.sub(p);
     let dist = d.dot(d).sqrt();
     let wi = d.div(dist);
@@ -502,12 +556,12 @@ fn sample_triangle_emitter(ctx: &RenderContext, p: V3, u0: V, u1: V) -> LightLan
     }
 }
 
-/// glam's `normalize_or(Vec3::Y)`.
+/// glam's `normalize_or(fallback)`.
 #[inline(always)]
-fn normalize_or_y(v: V3) -> V3 {
+fn normalize_or(v: V3, fallback: V3) -> V3 {
     let rcp = V::splat(1.0) / v.dot(v).sqrt();
     let ok = rcp.abs().simd_lt(V::splat(f32::INFINITY)) & gt(rcp, V::splat(0.0));
-    V3::select(ok, v.scale(rcp), V3::splat(Vec3::Y))
+    V3::select(ok, v.scale(rcp), fallback)
 }
 
 /// `path::queue_shadow_ray`: the occlusion test for one light sample per lane.

@@ -3,15 +3,25 @@
 
 use super::super::{PathState, RayQueue, RenderContext, ShadeOutputs, Surface};
 use crate::integrator::diffuse::{self, DiffuseLanes, DiffuseOutputs, LANES};
+use crate::integrator::surface_material;
 use crate::math::{Hit, Vec3};
 use crate::sampler::DrawBatch;
 use crate::scene::Material;
 
+/// How one queue entry of a chunk is shaded.
+enum Entry {
+    /// The ray left the scene.
+    Miss,
+    /// In the chunk's lanes, which reconstruct the surface themselves.
+    Lane,
+    /// One by one, at this surface.
+    Scalar(Surface),
+}
+
 /// Scratch space of the shade stage, reused across depths and tiles.
 #[derive(Default)]
 pub struct ShadeScratch {
-    /// The chunk's surfaces (`None` for misses), and whether each went into a lane.
-    surfaces: Vec<(Option<Surface>, bool)>,
+    entries: Vec<Entry>,
     lanes: DiffuseLanes,
     lane_out: DiffuseOutputs,
 }
@@ -40,17 +50,24 @@ pub fn shade(
     let mut in_lanes = 0;
     for start in (0..rays.len()).step_by(LANES) {
         let chunk = start..(start + LANES).min(rays.len());
-        scratch.surfaces.clear();
+        scratch.entries.clear();
         scratch.lanes.len = 0;
         for q in chunk.clone() {
             let (ray, path) = (&rays.rays[q], rays.path[q]);
-            let surface = hits[q].as_ref().map(|hit| Surface::at(ctx.scene, ray, hit));
-            let albedo = surface.and_then(|s| lane_albedo(ctx, lanes_apply, &s));
-            if let (Some(s), Some(albedo)) = (&surface, albedo) {
-                let throughput = paths.throughput[path as usize];
-                scratch.lanes.push(path, q, ray, s, throughput, albedo);
-            }
-            scratch.surfaces.push((surface, albedo.is_some()));
+            let entry = match &hits[q] {
+                None => Entry::Miss,
+                Some(hit) => {
+                    match lane_albedo(ctx, lanes_apply, surface_material(ctx.scene, hit.prim)) {
+                        Some(albedo) => {
+                            let throughput = paths.throughput[path as usize];
+                            scratch.lanes.push(path, q, ray, hit, throughput, albedo);
+                            Entry::Lane
+                        }
+                        None => Entry::Scalar(Surface::at(ctx.scene, ray, hit)),
+                    }
+                }
+            };
+            scratch.entries.push(entry);
         }
         in_lanes += scratch.lanes.len as u64;
         if let (true, Some(direct)) = (scratch.lanes.len > 0, ctx.integrator.direct_lighting()) {
@@ -65,20 +82,20 @@ pub fn shade(
             );
         }
         let mut lane = 0;
-        for (q, (surface, in_lane)) in chunk.zip(&scratch.surfaces) {
+        for (q, entry) in chunk.zip(&scratch.entries) {
             let (ray, path) = (&rays.rays[q], rays.path[q]);
-            match surface {
-                Some(_) if *in_lane => {
+            match entry {
+                Entry::Lane => {
                     diffuse::queue_lane(&scratch.lane_out, lane, path, paths, &mut out);
                     lane += 1;
                 }
-                Some(s) => {
+                Entry::Scalar(s) => {
                     let numbers = (&layout, draws.of(q));
                     ctx.integrator.shade_hit(ctx, depth, ray, s, path, paths, numbers, &mut out);
                 }
                 // Rays that leave the scene see black: scene lights (the sky included) are not
                 // geometry and are reached only by light sampling (SCENE_FORMAT.md).
-                None => {}
+                Entry::Miss => {}
             }
         }
     }
@@ -87,9 +104,12 @@ pub fn shade(
 
 /// The albedo of a surface that is shaded in lanes: diffuse, when lanes apply at all.
 #[inline]
-fn lane_albedo(ctx: &RenderContext, lanes_apply: bool, s: &Surface) -> Option<Vec3> {
-    match ctx.scene.materials[s.material as usize] {
-        Material::Diffuse { albedo } if lanes_apply => Some(albedo),
+fn lane_albedo(ctx: &RenderContext, lanes_apply: bool, material: u32) -> Option<Vec3> {
+    if !lanes_apply {
+        return None;
+    }
+    match ctx.scene.materials[material as usize] {
+        Material::Diffuse { albedo } => Some(albedo),
         _ => None,
     }
 }
