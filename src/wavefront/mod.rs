@@ -238,16 +238,18 @@ fn trace_sample_batch(
         &mut ws.paths,
         &mut ws.rays,
     );
-    stats.camera_rays += ws.rays.len() as u64;
+    let camera_len = ws.rays.len();
+    stats.camera_rays += camera_len as u64;
     let mut depth = 0;
     while !ws.rays.is_empty() {
-        stages::extend(
-            ctx,
-            &ws.rays,
-            stages::Coherence::of_depth(depth, ctx.packets, ctx.accel.is_large()),
-            &mut ws.hits,
-            &mut stats.trace,
+        let coherence = stages::Coherence::of_queue(
+            depth,
+            ws.rays.len(),
+            camera_len,
+            ctx.packets,
+            ctx.accel.is_large(),
         );
+        stages::extend(ctx, &ws.rays, coherence, &mut ws.hits, &mut stats.trace);
         ws.next_rays.clear();
         ws.shadow.clear();
         ws.probes.clear();
@@ -272,7 +274,7 @@ fn trace_sample_batch(
         stages::trace_shadow_rays(
             ctx,
             &ws.shadow,
-            stages::Coherence::of_depth(depth, ctx.packets, ctx.accel.is_large()),
+            coherence,
             &mut ws.blocked,
             &mut ws.paths,
             &mut stats.trace,

@@ -6,10 +6,11 @@ use crate::math::Hit;
 
 /// How a queue's rays are traced. Camera rays of a tile (and their shadow rays) are coherent:
 /// neighbouring queue entries are samples of the same or adjacent pixels, so 8-wide packets
-/// share most nodes. The first bounce still starts from neighbouring points, and on a
-/// cache-resident structure packets win there too; later bounces scatter and go one at a
-/// time, in streams. Packet and single-ray traversal return bit-identical hits, so the choice
-/// never changes the image.
+/// share most nodes. Bounces keep the queue order of their pixels, so while most paths of the
+/// tile are alive, neighbouring entries still start from nearby points and packets win on a
+/// cache-resident structure; once most have left the scene, neighbours come from pixels far
+/// apart and single rays (in streams) win. Packet and single-ray traversal return
+/// bit-identical hits, so the choice never changes the image.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Coherence {
     Coherent,
@@ -18,10 +19,23 @@ pub enum Coherence {
 
 impl Coherence {
     /// Camera rays (depth 0) are coherent, and first bounces (depth 1) unless the structure
-    /// outgrows the caches (measured: PERF.md, "Measurements moved from doc comments").
+    /// outgrows the caches; later bounces too while the queue holds at least half as many rays
+    /// as the tile's camera queue (measured: PERF.md, "Whole renders").
     /// `packets: false` treats every queue as incoherent (single rays throughout).
-    pub fn of_depth(depth: u32, packets: bool, large_structure: bool) -> Coherence {
-        if packets && (depth == 0 || (depth == 1 && !large_structure)) {
+    pub fn of_queue(
+        depth: u32,
+        queue_len: usize,
+        camera_len: usize,
+        packets: bool,
+        large_structure: bool,
+    ) -> Coherence {
+        let dense = queue_len * 2 >= camera_len;
+        let coherent = match depth {
+            0 => true,
+            1 => !large_structure,
+            _ => !large_structure && dense,
+        };
+        if packets && coherent {
             Coherence::Coherent
         } else {
             Coherence::Incoherent
