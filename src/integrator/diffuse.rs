@@ -9,183 +9,23 @@
 //! images are bit-identical to the scalar path's (tests/lighting.rs), which stays for every
 //! other case.
 
-use std::f32::consts::{FRAC_1_PI, TAU};
+use std::f32::consts::FRAC_1_PI;
 
 use super::lights::TriangleEmitter;
 use super::path::{DirectLighting, DrawLayout, RR_START_DEPTH};
 use super::{PathState, RenderContext, ShadeOutputs};
 use crate::geometry::prim;
-use crate::math::{Hit, Ray, Vec3, COS_COEFFS, SIN_COEFFS};
+use crate::math::{Hit, Ray, Vec3};
 use crate::sampler::DrawBatch;
 use crate::scene::{Light, Scene};
-use crate::simd::{SimdF32, VFloat};
+use crate::simd::SimdF32;
+
+use super::lane_math::{
+    gt, max, min, neg, normalize_or, offset_origin, ray_epsilon, sincos_turns, Frame, Lanes, V, V3,
+};
 
 /// Vertices shaded together.
 pub const LANES: usize = 8;
-type V = VFloat<LANES>;
-type Lanes = [f32; LANES];
-
-/// Three coordinates of `LANES` vectors.
-#[derive(Clone, Copy)]
-struct V3 {
-    x: V,
-    y: V,
-    z: V,
-}
-
-impl V3 {
-    #[inline(always)]
-    fn load(a: &[Lanes; 3]) -> V3 {
-        V3 { x: V::load(&a[0]), y: V::load(&a[1]), z: V::load(&a[2]) }
-    }
-    #[inline(always)]
-    fn splat(v: Vec3) -> V3 {
-        V3 { x: V::splat(v.x), y: V::splat(v.y), z: V::splat(v.z) }
-    }
-    #[inline(always)]
-    fn store(self, out: &mut [Lanes; 3]) {
-        self.x.store(&mut out[0]);
-        self.y.store(&mut out[1]);
-        self.z.store(&mut out[2]);
-    }
-    #[inline(always)]
-    fn add(self, o: V3) -> V3 {
-        V3 { x: self.x + o.x, y: self.y + o.y, z: self.z + o.z }
-    }
-    #[inline(always)]
-    fn sub(self, o: V3) -> V3 {
-        V3 { x: self.x - o.x, y: self.y - o.y, z: self.z - o.z }
-    }
-    #[inline(always)]
-    fn mul(self, o: V3) -> V3 {
-        V3 { x: self.x * o.x, y: self.y * o.y, z: self.z * o.z }
-    }
-    #[inline(always)]
-    fn scale(self, s: V) -> V3 {
-        V3 { x: self.x * s, y: self.y * s, z: self.z * s }
-    }
-    #[inline(always)]
-    fn div(self, s: V) -> V3 {
-        V3 { x: self.x / s, y: self.y / s, z: self.z / s }
-    }
-    /// glam's `cross`, in its order of operations.
-    #[inline(always)]
-    fn cross(self, o: V3) -> V3 {
-        V3 {
-            x: self.y * o.z - o.y * self.z,
-            y: self.z * o.x - o.z * self.x,
-            z: self.x * o.y - o.x * self.y,
-        }
-    }
-    #[inline(always)]
-    fn dot(self, o: V3) -> V {
-        self.x * o.x + self.y * o.y + self.z * o.z
-    }
-    #[inline(always)]
-    fn select(mask: V, t: V3, f: V3) -> V3 {
-        V3 {
-            x: V::select(mask, t.x, f.x),
-            y: V::select(mask, t.y, f.y),
-            z: V::select(mask, t.z, f.z),
-        }
-    }
-    /// glam's `max_element`: `if a > b { a } else { b }`, folded left.
-    #[inline(always)]
-    fn max_element(self) -> V {
-        max(max(self.x, self.y), self.z)
-    }
-    /// A mask of the lanes whose three coordinates are finite.
-    #[inline(always)]
-    fn is_finite(self) -> V {
-        let inf = V::splat(f32::INFINITY);
-        self.x.abs().simd_lt(inf) & self.y.abs().simd_lt(inf) & self.z.abs().simd_lt(inf)
-    }
-    /// Coordinates in the frame (t, b, n), as `Frame::to_local`.
-    #[inline(always)]
-    fn to_local(self, f: &Frame) -> V3 {
-        V3 { x: self.dot(f.t), y: self.dot(f.b), z: self.dot(f.n) }
-    }
-}
-
-/// `if a > b { a } else { b }` per lane.
-#[inline(always)]
-fn max(a: V, b: V) -> V {
-    V::select(b.simd_lt(a), a, b)
-}
-
-/// `f32::min(a, b)` for lanes that are not NaN.
-#[inline(always)]
-fn min(a: V, b: V) -> V {
-    V::select(a.simd_lt(b), a, b)
-}
-
-#[inline(always)]
-fn gt(a: V, b: V) -> V {
-    b.simd_lt(a)
-}
-
-/// `-x`, exactly (also for zeros).
-#[inline(always)]
-fn neg(x: V) -> V {
-    V::splat(-1.0) * x
-}
-
-/// The shading frame of `math::orthonormal_basis`, lane by lane.
-struct Frame {
-    t: V3,
-    b: V3,
-    n: V3,
-}
-
-impl Frame {
-    #[inline(always)]
-    fn new(n: V3) -> Frame {
-        let one = V::splat(1.0);
-        // `1.0f32.copysign(n.z)`: the sign bit of n.z on 1.0.
-        let sign = one | (n.z & V::splat(-0.0));
-        let a = V::splat(-1.0) / (sign + n.z);
-        let b = n.x * n.y * a;
-        let t = V3 { x: one + sign * n.x * n.x * a, y: sign * b, z: neg(sign) * n.x };
-        let bb = V3 { x: b, y: sign + n.y * n.y * a, z: neg(n.y) };
-        Frame { t, b: bb, n }
-    }
-}
-
-/// `math::sincos_turns` lane by lane: the same operations in the same order.
-#[inline(always)]
-fn sincos_turns(u: V) -> (V, V) {
-    let (zero, one) = (V::splat(0.0), V::splat(1.0));
-    let step = |edge: f32| V::select(u.simd_ge(V::splat(edge)), one, zero);
-    let quadrant = step(0.125) + step(0.375) + step(0.625) + step(0.875);
-    let x = (u - quadrant * V::splat(0.25)) * V::splat(TAU);
-    let z = x * x;
-    let [s1, s2, s3] = SIN_COEFFS.map(V::splat);
-    let s = ((s3 * z + s2) * z + s1) * z * x + x;
-    let [c1, c2, c3] = COS_COEFFS.map(V::splat);
-    let c = ((c3 * z + c2) * z + c1) * z * z - V::splat(0.5) * z + one;
-    // Quadrants 1 and 3 swap sine and cosine; 1 and 2 negate the cosine slot, 2 and 3 the sine.
-    let odd = quadrant.simd_eq(one) | quadrant.simd_eq(V::splat(3.0));
-    let (s, c) = (V::select(odd, c, s), V::select(odd, s, c));
-    let neg_sin = quadrant.simd_eq(V::splat(2.0)) | quadrant.simd_eq(V::splat(3.0));
-    let neg_cos = quadrant.simd_eq(one) | quadrant.simd_eq(V::splat(2.0));
-    (V::select(neg_sin, neg(s), s), V::select(neg_cos, neg(c), c))
-}
-
-/// The spawn-point offset of `RenderContext::ray_epsilon`, per lane.
-#[inline(always)]
-fn ray_epsilon(p: V3, scene_epsilon: f32) -> V {
-    const ULPS: f32 = 8.0 * f32::EPSILON;
-    let largest = max(max(p.x.abs(), p.y.abs()), p.z.abs());
-    max(largest * V::splat(ULPS), V::splat(scene_epsilon))
-}
-
-/// `RenderContext::offset_origin`, per lane.
-#[inline(always)]
-fn offset_origin(p: V3, ng: V3, dir: V3, scene_epsilon: f32) -> V3 {
-    let one = V::splat(1.0);
-    let side = V::select(ng.dot(dir).simd_ge(V::splat(0.0)), one, -one);
-    p.add(ng.scale(side * ray_epsilon(p, scene_epsilon)))
-}
 
 /// Up to `LANES` diffuse vertices, loaded lane by lane: each lane's ray and hit, and what
 /// reconstructing its surface reads (`load_surfaces`), so that `Surface::at` runs in lanes.
@@ -554,14 +394,6 @@ fn sample_triangle_emitter(ctx: &RenderContext, p: V3, u0: V, u1: V) -> LightLan
         cos_light: cos_l,
         sampled: V::from_bitmask(picked) & gt(cos_l, zero) & gt(dist, zero),
     }
-}
-
-/// glam's `normalize_or(fallback)`.
-#[inline(always)]
-fn normalize_or(v: V3, fallback: V3) -> V3 {
-    let rcp = V::splat(1.0) / v.dot(v).sqrt();
-    let ok = rcp.abs().simd_lt(V::splat(f32::INFINITY)) & gt(rcp, V::splat(0.0));
-    V3::select(ok, v.scale(rcp), fallback)
 }
 
 /// `path::queue_shadow_ray`: the occlusion test for one light sample per lane.
