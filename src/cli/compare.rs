@@ -12,6 +12,7 @@ use pathtracer::{bail, Error, Result};
 #[derive(Args, Debug, Clone)]
 #[command(
     about = "Error metrics of an image against a reference",
+    override_usage = "pathtracer compare IMAGE REFERENCE [--mask MASK.png]",
     long_about = "Prints RMSE, relative RMSE (RMSE / mean of the reference) and mean bias (image - \
 reference) per channel and over all channels, for the whole image and for the mask's nonzero \
 pixels.\n\nEXR files are read as linear radiance; PNG as display values in [0, 1]: both images \
