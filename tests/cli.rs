@@ -659,3 +659,77 @@ fn a_full_stderr_is_exit_code_2_without_a_panic() {
     assert!(String::from_utf8_lossy(&out.stdout).contains("Job completed"));
     assert!(image.exists());
 }
+
+#[test]
+fn completions_print_a_script_for_each_shell() {
+    for shell in ["bash", "zsh", "fish"] {
+        let out = pathtracer(&["completions", shell]);
+        let script = String::from_utf8_lossy(&out.stdout);
+        assert_eq!(out.status.code(), Some(0), "{shell}: {}", String::from_utf8_lossy(&out.stderr));
+        assert!(out.stderr.is_empty(), "{shell}");
+        // A render flag, a subcommand and one of its flags.
+        for want in ["max-scene-bytes", "converge", "ref-spp"] {
+            assert!(script.contains(want), "{shell}: no '{want}' in the script");
+        }
+    }
+    for (args, want) in [
+        (vec!["completions", "tcsh"], "'tcsh'"),
+        (vec!["completions"], "completions"),
+        (vec!["completions", "bash", "zsh"], "'zsh'"),
+    ] {
+        assert_one_line_error(&pathtracer(&args), want);
+    }
+    // Through the same writes as every command: a full stdout is the one-line error, a closed
+    // one a quiet exit.
+    let full = pathtracer_with_stdout(&["completions", "bash"], dev_full());
+    assert_one_line_error(&full, "writing to standard output: No space left on device");
+    let closed = pathtracer_with_stdout(&["completions", "zsh"], closed_pipe());
+    assert_eq!(closed.status.code(), Some(0));
+    assert!(closed.stderr.is_empty());
+}
+
+#[test]
+fn every_command_has_a_help() {
+    let commands = [
+        vec![],
+        vec!["bench"],
+        vec!["compare"],
+        vec!["converge"],
+        vec!["gen"],
+        vec!["chart"],
+        vec!["chart", "accuracy"],
+        vec!["chart", "scaling"],
+        vec!["merge"],
+        vec!["part-info"],
+        vec!["completions"],
+    ];
+    for command in commands {
+        for help in ["--help", "-h"] {
+            let mut args = command.clone();
+            args.push(help);
+            let out = pathtracer(&args);
+            let text = String::from_utf8_lossy(&out.stdout);
+            assert_eq!(
+                out.status.code(),
+                Some(0),
+                "{args:?}: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            assert!(out.stderr.is_empty(), "{args:?}");
+            let usage = format!("Usage: pathtracer {}", command.join(" "));
+            assert!(text.contains(usage.trim_end()), "{args:?}: no '{usage}' in:\n{text}");
+        }
+    }
+    // The course flags are in the render command's help, as the course spells them.
+    let help = String::from_utf8_lossy(&pathtracer(&["--help"]).stdout).into_owned();
+    for flag in
+        ["-t <N>", "-s <N>", "-l <N>", "-m <N>", "-H", "-f <FILE>", "-r <W> <H>", "-a <B> <TOL>"]
+    {
+        assert!(help.contains(flag), "no '{flag}' in --help");
+    }
+    let version = pathtracer(&["--version"]);
+    assert_eq!(
+        String::from_utf8_lossy(&version.stdout),
+        format!("pathtracer {}\n", env!("CARGO_PKG_VERSION"))
+    );
+}

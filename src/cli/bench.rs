@@ -2,58 +2,77 @@
 
 use std::path::{Path, PathBuf};
 
+use clap::Args;
+
 use super::{parse_byte_count, parse_in_range, parse_number};
 use pathtracer::accel::{Accel, AccelKind};
 use pathtracer::bench::{self, BenchRecord, BenchResult, RaySet, Traversal};
 use pathtracer::staged::Outputs;
 use pathtracer::{bail, scene, Error, Result};
 
-const USAGE: &str = "\
-Usage: pathtracer bench SCENE.dae [OPTIONS]
-
-Traces the standard ray sets (BENCHMARK.md) and reports throughput, exact node and triangle
-test counts per ray, and the checksums hits and t_sum. Spheres are left out.
-
-Options:
-  --ray-set primary|diffuse|shadow   one set (default: all three); shadow rays are any-hit
-  --rays-in FILE        trace the rays of FILE (32-byte records) instead; needs --ray-set
-  --rays-out PREFIX     also write PREFIX.{primary,diffuse,shadow}.rays
-  --traversal single|packet4|packet8|packet16   (default: all four; packet16 is 16 rays
-                        as two 8-wide halves; primary rays go in 2x2, 4x2, 4x4 pixel blocks)
-  --threads N           worker threads (default 1)
-  --packet-fallback N   packets hand subtrees entered by <= N lanes to single rays
-                        (default: the tuned value; for measuring it)
-  --reps N              timed repetitions after a warm-up; the best counts (default 5)
-  --json                one JSON object per line on stdout (the table goes to stderr)
-  --baseline FILE       compare the exact counters and checksums with FILE (written by
-                        --json): each regression on one line, then exit code 1
-  --tolerance PCT       with --baseline: node and triangle tests may rise, and hits, t_sum
-                        and rays move, by at most PCT percent (default 0: exact)
-  --max-scene-bytes N   refuse a scene file larger than N bytes (default 1073741824, 1 GiB)";
-
-struct BenchArgs {
-    scene: PathBuf,
+/// `pathtracer bench`.
+#[derive(Args, Debug, Clone)]
+#[command(
+    about = "Trace the standard ray sets of BENCHMARK.md and report throughput and exact counters",
+    long_about = "Traces the standard ray sets (BENCHMARK.md) and reports throughput, exact node \
+and triangle test counts per ray, and the checksums hits and t_sum. Spheres are left out.",
+    after_help = "Primary rays go in 2x2, 4x2, 4x4 pixel blocks for the packet traversals."
+)]
+pub struct BenchArgs {
+    /// The COLLADA scene
+    #[arg(value_name = "SCENE.dae")]
+    scene: Option<PathBuf>,
+    /// One set (default: all three); shadow rays are any-hit
+    #[arg(long, value_name = "primary|diffuse|shadow",
+          value_parser = |s: &str| RaySet::parse(s).map_err(|e| e.context("bench: --ray-set")))]
     ray_set: Option<RaySet>,
+    /// Trace the rays of FILE (32-byte records) instead; needs --ray-set
+    #[arg(long, value_name = "FILE")]
     rays_in: Option<PathBuf>,
+    /// Also write PREFIX.{primary,diffuse,shadow}.rays
+    #[arg(long, value_name = "PREFIX")]
     rays_out: Option<PathBuf>,
+    /// single|packet4|packet8|packet16, repeatable (default: all four; packet16 is 16 rays as
+    /// two 8-wide halves)
+    #[arg(long = "traversal", value_name = "KIND",
+          value_parser = |s: &str| Traversal::parse(s).map_err(|e| e.context("bench: --traversal")))]
     traversals: Vec<Traversal>,
+    /// Worker threads
+    #[arg(long, value_name = "N", default_value = "1",
+          value_parser = |s: &str| parse_in_range("--threads", s, 1, 1024).map(|n| n as usize))]
     threads: usize,
-    reps: usize,
-    json: bool,
+    /// Packets hand subtrees entered by <= N lanes to single rays (default: the tuned value;
+    /// for measuring it)
+    #[arg(long = "packet-fallback", value_name = "N",
+          value_parser = |s: &str| parse_in_range("--packet-fallback", s, 0, 8))]
     fallback: Option<u32>,
+    /// Timed repetitions after a warm-up; the best counts
+    #[arg(long, value_name = "N", default_value = "5",
+          value_parser = |s: &str| parse_in_range("--reps", s, 1, 10_000).map(|n| n as usize))]
+    reps: usize,
+    /// One JSON object per line on stdout (the table goes to stderr)
+    #[arg(long)]
+    json: bool,
+    /// Compare the exact counters and checksums with FILE (written by --json): each regression
+    /// on one line, then exit code 1
+    #[arg(long, value_name = "FILE")]
     baseline: Option<PathBuf>,
-    tolerance_pct: f64,
-    max_scene_bytes: u64,
+    /// With --baseline: node and triangle tests may rise, and hits, t_sum and rays move, by at
+    /// most PCT percent [default: 0, exact]
+    #[arg(long = "tolerance", value_name = "PCT", value_parser = parse_percent)]
+    tolerance_pct: Option<f64>,
+    /// Refuse a scene file larger than N bytes [default: 1073741824, 1 GiB]
+    #[arg(long, value_name = "N",
+          value_parser = |s: &str| parse_byte_count("--max-scene-bytes", s))]
+    max_scene_bytes: Option<u64>,
 }
 
-pub fn run(args: &[String]) -> Result<()> {
-    if args.iter().any(|a| a == "-h" || a == "--help") {
-        return outln!("{USAGE}");
-    }
-    let a = parse(args)?;
+pub fn run(a: BenchArgs) -> Result<()> {
+    let (a, scene_path) = check(a)?;
     // A bad baseline fails before the work, not after it.
     let baseline = a.baseline.as_deref().map(read_baseline).transpose()?;
-    let loaded = scene::collada::load_with_limit(&a.scene, a.max_scene_bytes)?;
+    let max_bytes = a.max_scene_bytes.unwrap_or(scene::collada::DEFAULT_MAX_SCENE_BYTES);
+    let loaded = scene::collada::load_with_limit(&scene_path, max_bytes)?;
     let scene = bench::triangles_only(&loaded);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(a.threads)
@@ -61,7 +80,7 @@ pub fn run(args: &[String]) -> Result<()> {
         .map_err(|e| Error::new(format!("cannot start {} threads: {e}", a.threads)))?;
     // The build runs on the same `--threads` workers as the trace, so build_ms at 1 thread is
     // a single-threaded build.
-    Accel::check_limits(&scene).map_err(|e| e.in_scene(Some(&a.scene)))?;
+    Accel::check_limits(&scene).map_err(|e| e.in_scene(Some(&scene_path)))?;
     let accel = pool.install(|| Accel::build(&scene, AccelKind::Bvh));
     let build_ms = accel.build_time().as_secs_f64() * 1e3;
 
@@ -92,10 +111,9 @@ pub fn run(args: &[String]) -> Result<()> {
         }
     };
 
-    let name = a
-        .scene
+    let name = scene_path
         .file_name()
-        .map_or_else(|| a.scene.display().to_string(), |n| n.to_string_lossy().into_owned());
+        .map_or_else(|| scene_path.display().to_string(), |n| n.to_string_lossy().into_owned());
     let mut results = Vec::new();
     for (set, rays) in &sets {
         for &traversal in &a.traversals {
@@ -124,7 +142,7 @@ pub fn run(args: &[String]) -> Result<()> {
     }
     let mut report = format_table(&results);
     if let (Some(base), Some(path)) = (&baseline, &a.baseline) {
-        report += &compare_with_baseline(base, path, &results, a.tolerance_pct);
+        report += &compare_with_baseline(base, path, &results, a.tolerance_pct.unwrap_or(0.0));
     }
     if a.json {
         super::write_stderr(format_args!("{report}"));
@@ -218,73 +236,20 @@ fn parse_percent(text: &str) -> Result<f64> {
     Ok(pct)
 }
 
-fn parse(args: &[String]) -> Result<BenchArgs> {
-    let mut a = BenchArgs {
-        scene: PathBuf::new(),
-        ray_set: None,
-        rays_in: None,
-        rays_out: None,
-        traversals: Vec::new(),
-        threads: 1,
-        reps: 5,
-        json: false,
-        fallback: None,
-        baseline: None,
-        tolerance_pct: 0.0,
-        max_scene_bytes: scene::collada::DEFAULT_MAX_SCENE_BYTES,
-    };
-    let mut tolerance = None;
-    let mut scene = None;
-    let mut it = args.iter().map(String::as_str);
-    while let Some(arg) = it.next() {
-        let mut value = |name: &str| {
-            it.next().ok_or_else(|| Error::new(format!("bench: {name} needs a value")))
-        };
-        match arg {
-            "--ray-set" => a.ray_set = Some(RaySet::parse(value("--ray-set")?)?),
-            "--rays-in" => a.rays_in = Some(PathBuf::from(value("--rays-in")?)),
-            "--rays-out" => a.rays_out = Some(PathBuf::from(value("--rays-out")?)),
-            "--traversal" => {
-                a.traversals.push(Traversal::parse(value("--traversal")?)?);
-            }
-            "--threads" => {
-                a.threads = parse_in_range("--threads", value("--threads")?, 1, 1024)? as usize
-            }
-            "--reps" => a.reps = parse_in_range("--reps", value("--reps")?, 1, 10_000)? as usize,
-            "--json" => a.json = true,
-            "--max-scene-bytes" => {
-                a.max_scene_bytes =
-                    parse_byte_count("--max-scene-bytes", value("--max-scene-bytes")?)?
-            }
-            "--baseline" => a.baseline = Some(PathBuf::from(value("--baseline")?)),
-            "--tolerance" => tolerance = Some(parse_percent(value("--tolerance")?)?),
-            "--packet-fallback" => {
-                a.fallback =
-                    Some(parse_in_range("--packet-fallback", value("--packet-fallback")?, 0, 8)?
-                        as u32)
-            }
-            s if s.starts_with('-') && s.len() > 1 => {
-                bail!("bench: unknown option '{s}' (see pathtracer bench --help)")
-            }
-            path => {
-                if let Some(first) = scene.replace(PathBuf::from(path)) {
-                    bail!("bench: more than one scene given: '{}' and '{path}'", first.display());
-                }
-            }
-        }
-    }
-    a.scene = scene
+/// The checks of combinations; the scene's path.
+fn check(mut a: BenchArgs) -> Result<(BenchArgs, PathBuf)> {
+    let scene = a
+        .scene
+        .take()
         .ok_or_else(|| Error::new("bench: no scene file given (see pathtracer bench --help)"))?;
     if a.rays_in.is_some() && a.rays_out.is_some() {
         bail!("bench: --rays-out writes generated rays; it cannot be combined with --rays-in");
     }
-    match (tolerance, &a.baseline) {
-        (Some(_), None) => bail!("bench: --tolerance needs --baseline"),
-        (Some(t), Some(_)) => a.tolerance_pct = t,
-        (None, _) => {}
+    if a.tolerance_pct.is_some() && a.baseline.is_none() {
+        bail!("bench: --tolerance needs --baseline");
     }
     if a.traversals.is_empty() {
         a.traversals = Traversal::ALL.to_vec();
     }
-    Ok(a)
+    Ok((a, scene))
 }

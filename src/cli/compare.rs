@@ -3,22 +3,33 @@
 
 use std::path::{Path, PathBuf};
 
+use clap::Args;
+
 use pathtracer::metrics::{self, Comparison, Image, RegionError};
 use pathtracer::{bail, Error, Result};
 
-const USAGE: &str = "\
-Usage: pathtracer compare IMAGE REFERENCE [--mask MASK.png]
+/// `pathtracer compare`.
+#[derive(Args, Debug, Clone)]
+#[command(
+    about = "Error metrics of an image against a reference",
+    override_usage = "pathtracer compare IMAGE REFERENCE [--mask MASK.png]",
+    long_about = "Prints RMSE, relative RMSE (RMSE / mean of the reference) and mean bias (image - \
+reference) per channel and over all channels, for the whole image and for the mask's nonzero \
+pixels.\n\nEXR files are read as linear radiance; PNG as display values in [0, 1]: both images \
+must be of the same kind (EXR with EXR, PNG with PNG). A NaN or infinite pixel is an error. Both \
+images (and the mask) must have the same size."
+)]
+pub struct CompareArgs {
+    /// The image and the reference
+    #[arg(value_names = ["IMAGE", "REFERENCE"])]
+    files: Vec<PathBuf>,
+    /// Also report errors over the mask's nonzero pixels
+    #[arg(long, value_name = "MASK.png")]
+    mask: Vec<PathBuf>,
+}
 
-Prints RMSE, relative RMSE (RMSE / mean of the reference) and mean bias (image - reference) per
-channel and over all channels, for the whole image and for the mask's nonzero pixels.
-EXR files are read as linear radiance; PNG as display values in [0, 1]: both images must be\nof the same kind (EXR with EXR, PNG with PNG). A NaN or infinite pixel is an error.
-Both images (and the mask) must have the same size.";
-
-pub fn run(args: &[String]) -> Result<()> {
-    if args.iter().any(|a| a == "-h" || a == "--help") {
-        return outln!("{USAGE}");
-    }
-    let (image_path, reference_path, mask_path) = parse(args)?;
+pub fn run(args: CompareArgs) -> Result<()> {
+    let (image_path, reference_path, mask_path) = check(args)?;
     let image = metrics::read_image(&image_path)?;
     let reference = metrics::read_image(&reference_path)?;
     let (a_linear, b_linear) = (is_linear(&image_path)?, is_linear(&reference_path)?);
@@ -83,25 +94,13 @@ pub(super) fn check_finite(path: &Path, image: &Image) -> Result<()> {
     Ok(())
 }
 
-fn parse(args: &[String]) -> Result<(PathBuf, PathBuf, Option<PathBuf>)> {
-    let mut files = Vec::new();
-    let mut mask = None;
-    let mut it = args.iter();
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--mask" => {
-                let v = it.next().ok_or_else(|| Error::new("compare: --mask needs a value"))?;
-                if mask.replace(PathBuf::from(v)).is_some() {
-                    bail!("compare: --mask given twice");
-                }
-            }
-            s if s.starts_with('-') && s.len() > 1 => {
-                bail!("compare: unknown option '{s}' (see pathtracer compare --help)")
-            }
-            s => files.push(PathBuf::from(s)),
-        }
+/// Two images and at most one mask.
+fn check(args: CompareArgs) -> Result<(PathBuf, PathBuf, Option<PathBuf>)> {
+    if args.mask.len() > 1 {
+        bail!("compare: --mask given twice");
     }
-    match <[PathBuf; 2]>::try_from(files) {
+    let mask = args.mask.into_iter().next();
+    match <[PathBuf; 2]>::try_from(args.files) {
         Ok([a, b]) => Ok((a, b, mask)),
         Err(f) => bail!("compare: expected two images (IMAGE REFERENCE), got {}", f.len()),
     }
@@ -139,13 +138,18 @@ pub fn format_comparison(c: &Comparison) -> String {
 mod tests {
     use super::*;
 
-    fn args(s: &str) -> Vec<String> {
-        s.split_whitespace().map(String::from).collect()
+    fn parse(s: &str) -> Result<(PathBuf, PathBuf, Option<PathBuf>)> {
+        let args: Vec<String> =
+            ["compare"].into_iter().chain(s.split_whitespace()).map(String::from).collect();
+        match crate::cli::command::parse(&args)? {
+            crate::cli::command::Command::Compare(a) => check(a),
+            _ => unreachable!(),
+        }
     }
 
     #[test]
     fn arguments() {
-        let (a, b, m) = parse(&args("a.exr b.exr --mask m.png")).unwrap();
+        let (a, b, m) = parse("a.exr b.exr --mask m.png").unwrap();
         assert_eq!((a, b, m), ("a.exr".into(), "b.exr".into(), Some("m.png".into())));
         for (bad, want) in [
             ("a.exr", "expected two images"),
@@ -154,7 +158,7 @@ mod tests {
             ("a.exr b.exr --mask m --mask n", "twice"),
             ("a.exr b.exr --bogus", "unknown option"),
         ] {
-            let e = parse(&args(bad)).unwrap_err().to_string();
+            let e = parse(bad).unwrap_err().to_string();
             assert!(e.contains(want), "{bad}: {e}");
         }
     }

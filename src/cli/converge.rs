@@ -3,52 +3,69 @@
 
 use std::path::{Path, PathBuf};
 
-use super::render::{available_threads, lighting_warnings, parse_args};
+use clap::Args;
+
+use super::render::{available_threads, lighting_warnings};
+use super::render_args::RenderArgs;
 use super::{check_output, parse_in_range, parse_number};
 use pathtracer::accel::Accel;
 use pathtracer::convergence::{self, Point};
 use pathtracer::metrics::{self, Image};
 use pathtracer::render::RenderConfig;
 use pathtracer::staged::Outputs;
-use pathtracer::{bail, scene, Error, Result};
+use pathtracer::{bail, scene, Result};
 
-const USAGE: &str = "\
-Usage: pathtracer converge SCENE.dae --spp LIST (--reference REF.exr | --ref-spp N)
-                           [--write-reference REF.exr] [--mask MASK.png] [--csv FILE]
-                           [RENDER OPTIONS]
+/// `pathtracer converge`: its own flags and the renderer's.
+#[derive(Args, Debug, Clone)]
+#[command(
+    about = "Error and time against samples per pixel, against a reference",
+    long_about = "Renders SCENE at each sample count of LIST (comma-separated, e.g. 1,2,4,8,16), \
+times each render (the render loop only), and prints RMSE, relative RMSE and bias against the \
+reference (see pathtracer compare --help), with the fitted slope of log RMSE against log spp (an \
+unbiased estimator gives -0.5 until the reference's own noise is reached).",
+    after_help = "The render options are the renderer's (not -s, -f, --info). Each render uses \
+seed + spp, the reference seed + 2^32, so their noise is independent."
+)]
+pub struct ConvergeArgs {
+    /// Sample counts, comma-separated (required)
+    #[arg(long = "spp", value_name = "LIST", help_heading = "Convergence options")]
+    spps: Option<String>,
+    /// Linear EXR reference of the same size (e.g. rendered with -f REF.exr)
+    #[arg(long, value_name = "FILE", help_heading = "Convergence options")]
+    reference: Option<PathBuf>,
+    /// Render the reference here, with N spp and the same options
+    #[arg(long, value_name = "N", help_heading = "Convergence options",
+          value_parser = |s: &str| parse_in_range("--ref-spp", s, 1, 1 << 20))]
+    ref_spp: Option<u32>,
+    /// Save that reference as linear EXR
+    #[arg(long, value_name = "FILE", help_heading = "Convergence options",
+          value_parser = parse_exr_path)]
+    write_reference: Option<PathBuf>,
+    /// Also report errors over the mask's nonzero pixels
+    #[arg(long, value_name = "FILE", help_heading = "Convergence options")]
+    mask: Option<PathBuf>,
+    /// Write the table as CSV
+    #[arg(long, value_name = "FILE", help_heading = "Convergence options")]
+    csv: Option<PathBuf>,
+    #[command(flatten)]
+    render: RenderArgs,
+}
 
-Renders SCENE at each sample count of LIST (comma-separated, e.g. 1,2,4,8,16), times each
-render (the render loop only), and prints RMSE, relative RMSE and bias against the reference
-(see pathtracer compare --help), with the fitted slope of log RMSE against log spp (an
-unbiased estimator gives -0.5 until the reference's own noise is reached).
-
-  --reference FILE        linear EXR reference of the same size (e.g. rendered with -f REF.exr)
-  --ref-spp N             render the reference here, with N spp and the same options
-  --write-reference FILE  save that reference as linear EXR
-  --mask FILE             also report errors over the mask's nonzero pixels
-  --csv FILE              write the table as CSV
-
-RENDER OPTIONS are the renderer's: -t -l -m -H -r -a --shading --seed --sampler --no-bvh
-(not -s, -f).
-Each render uses seed + spp, the reference seed + 2^32, so their noise is independent.";
-
+/// The checked flags.
 #[derive(Debug)]
-struct ConvergeArgs {
+struct Checked {
     spps: Vec<u32>,
     reference: Option<PathBuf>,
     ref_spp: Option<u32>,
     write_reference: Option<PathBuf>,
     mask: Option<PathBuf>,
     csv: Option<PathBuf>,
-    render_args: Vec<String>,
+    render: RenderArgs,
 }
 
-pub fn run(args: &[String]) -> Result<()> {
-    if args.iter().any(|a| a == "-h" || a == "--help") {
-        return outln!("{USAGE}");
-    }
-    let a = parse(args)?;
-    let mut cli = parse_args(&a.render_args).map_err(|e| e.context("converge"))?;
+pub fn run(args: ConvergeArgs) -> Result<()> {
+    let a = check(args)?;
+    let mut cli = a.render.clone().into_cli().map_err(|e| e.context("converge"))?;
     if cli.info {
         bail!("converge: --info is not a convergence option");
     }
@@ -133,44 +150,14 @@ pub fn run(args: &[String]) -> Result<()> {
     out!("{}", format_table(&points, &reference))
 }
 
-fn parse(args: &[String]) -> Result<ConvergeArgs> {
-    let mut a = ConvergeArgs {
-        spps: Vec::new(),
-        reference: None,
-        ref_spp: None,
-        write_reference: None,
-        mask: None,
-        csv: None,
-        render_args: Vec::new(),
+fn check(a: ConvergeArgs) -> Result<Checked> {
+    if a.render.pixel_samples.is_some() {
+        bail!("converge: -s is replaced by --spp LIST");
+    }
+    let spps = match &a.spps {
+        Some(list) => parse_spp_list(list)?,
+        None => bail!("converge: --spp LIST is required (e.g. --spp 1,2,4,8,16)"),
     };
-    let mut it = args.iter();
-    while let Some(arg) = it.next() {
-        let mut value = |name: &str| {
-            it.next().ok_or_else(|| Error::new(format!("converge: {name} needs a value")))
-        };
-        match arg.as_str() {
-            "--spp" => a.spps = parse_spp_list(value("--spp")?)?,
-            "--reference" => a.reference = Some(PathBuf::from(value("--reference")?)),
-            "--ref-spp" => {
-                a.ref_spp = Some(parse_in_range("--ref-spp", value("--ref-spp")?, 1, 1 << 20)?)
-            }
-            "--write-reference" => {
-                let p = PathBuf::from(value("--write-reference")?);
-                if !p.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
-                    bail!("converge: --write-reference {}: must end in .exr", p.display());
-                }
-                a.write_reference = Some(p);
-            }
-            "--mask" => a.mask = Some(PathBuf::from(value("--mask")?)),
-            "--csv" => a.csv = Some(PathBuf::from(value("--csv")?)),
-            "-s" => bail!("converge: -s is replaced by --spp LIST"),
-            // Everything else is a render option (and its value) or the scene.
-            _ => a.render_args.push(arg.clone()),
-        }
-    }
-    if a.spps.is_empty() {
-        bail!("converge: --spp LIST is required (e.g. --spp 1,2,4,8,16)");
-    }
     match (&a.reference, a.ref_spp) {
         (None, None) => bail!("converge: give --reference FILE or --ref-spp N"),
         (Some(_), Some(_)) => bail!("converge: give either --reference or --ref-spp, not both"),
@@ -179,7 +166,23 @@ fn parse(args: &[String]) -> Result<ConvergeArgs> {
         }
         _ => {}
     }
-    Ok(a)
+    Ok(Checked {
+        spps,
+        reference: a.reference,
+        ref_spp: a.ref_spp,
+        write_reference: a.write_reference,
+        mask: a.mask,
+        csv: a.csv,
+        render: a.render,
+    })
+}
+
+fn parse_exr_path(text: &str) -> Result<PathBuf> {
+    let p = PathBuf::from(text);
+    if !p.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
+        bail!("converge: --write-reference {}: must end in .exr", p.display());
+    }
+    Ok(p)
 }
 
 fn parse_spp_list(text: &str) -> Result<Vec<u32>> {
@@ -280,16 +283,23 @@ fn csv(points: &[Point]) -> String {
 mod tests {
     use super::*;
 
-    fn args(s: &str) -> Vec<String> {
-        s.split_whitespace().map(String::from).collect()
+    fn parse(s: &str) -> Result<Checked> {
+        let args: Vec<String> =
+            ["converge"].into_iter().chain(s.split_whitespace()).map(String::from).collect();
+        match crate::cli::command::parse(&args)? {
+            crate::cli::command::Command::Converge(a) => check(a),
+            _ => unreachable!(),
+        }
     }
 
     #[test]
     fn arguments() {
-        let a = parse(&args("x.dae --spp 1,2,4 --ref-spp 64 -m 5 -H --csv o.csv")).unwrap();
+        let a = parse("x.dae --spp 1,2,4 --ref-spp 64 -m 5 -H --csv o.csv").unwrap();
         assert_eq!(a.spps, vec![1, 2, 4]);
         assert_eq!(a.ref_spp, Some(64));
-        assert_eq!(a.render_args, args("x.dae -m 5 -H"));
+        let cli = a.render.into_cli().unwrap();
+        assert_eq!((cli.scene.to_str(), cli.config.max_depth), (Some("x.dae"), 5));
+        assert_eq!(cli.config.integrator.name(), "hemisphere");
         for (bad, want) in [
             ("x.dae --ref-spp 4", "--spp LIST is required"),
             ("x.dae --spp 1,2", "--reference FILE or --ref-spp"),
@@ -301,7 +311,7 @@ mod tests {
             ("x.dae --spp 1 --ref-spp 4 -s 8", "replaced by --spp"),
             ("x.dae --spp", "needs a value"),
         ] {
-            let e = parse(&args(bad)).unwrap_err().to_string();
+            let e = parse(bad).unwrap_err().to_string();
             assert!(e.contains(want), "{bad}: {e}");
         }
     }

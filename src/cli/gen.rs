@@ -4,38 +4,40 @@
 use std::io::Write;
 use std::path::PathBuf;
 
+use clap::Args;
+
 use super::{check_output, parse_number};
 use pathtracer::{bail, procedural, Error, Result};
 
-const USAGE: &str = "\
-Usage: pathtracer gen cornell -o FILE.dae
-       pathtracer gen tori TRIANGLES [--seed S] -o FILE.dae
+/// `pathtracer gen`.
+#[derive(Args, Debug, Clone)]
+#[command(
+    about = "Write a procedural scene in the course's COLLADA dialect",
+    override_usage = "pathtracer gen cornell -o FILE.dae\n       \
+pathtracer gen tori TRIANGLES [--seed S] -o FILE.dae",
+    after_help = "Scenes:\n  \
+cornell   the Cornell box of assets/cornell.dae (area light = emissive quad, two spheres)\n  \
+tori N    a grid of tori over a floor with about N triangles (10000 .. 16000000); the \
+benchmark's scaling steps are 10000, 100000, 1000000 and 4000000"
+)]
+pub struct GenArgs {
+    /// cornell or tori
+    #[arg(value_name = "SCENE")]
+    kind: Option<String>,
+    /// The number of triangles (tori)
+    #[arg(value_name = "TRIANGLES")]
+    count: Option<String>,
+    /// Random seed of the tori
+    #[arg(long, value_name = "S", default_value = "1",
+          value_parser = |s: &str| parse_number::<u64>("--seed", s))]
+    seed: u64,
+    /// The scene file to write
+    #[arg(short = 'o', value_name = "FILE.dae")]
+    output: Option<PathBuf>,
+}
 
-Writes a deterministic scene in the course's COLLADA dialect:
-  cornell         the Cornell box of assets/cornell.dae (area light = emissive quad, two spheres)
-  tori N          a grid of tori over a floor with about N triangles (10000 .. 16000000);
-                  the benchmark's scaling steps are 10000, 100000, 1000000 and 4000000";
-
-pub fn run(args: &[String]) -> Result<()> {
-    if args.iter().any(|a| a == "-h" || a == "--help") {
-        return outln!("{USAGE}");
-    }
-    let (mut kind, mut count, mut seed, mut output) = (None, None, 1u64, None);
-    let mut it = args.iter().map(String::as_str);
-    while let Some(arg) = it.next() {
-        let mut value =
-            |name: &str| it.next().ok_or_else(|| Error::new(format!("{name} needs a value")));
-        match arg {
-            "-o" => output = Some(PathBuf::from(value("-o")?)),
-            "--seed" => seed = parse_number("--seed", value("--seed")?)?,
-            a if a.starts_with('-') && a.len() > 1 => {
-                bail!("gen: unknown option '{a}' (see gen --help)")
-            }
-            word if kind.is_none() => kind = Some(word.to_string()),
-            number if count.is_none() => count = Some(number.to_string()),
-            extra => bail!("gen: unexpected argument '{extra}'"),
-        }
-    }
+pub fn run(args: GenArgs) -> Result<()> {
+    let GenArgs { kind, count, seed, output } = args;
     let output = output.ok_or_else(|| Error::new("gen: no output file given (-o FILE.dae)"))?;
     check_output("gen: -o", &output, &[])?;
     let count = match (kind.as_deref(), count) {
@@ -55,7 +57,7 @@ pub fn run(args: &[String]) -> Result<()> {
             bail!("gen tori: how many triangles? (e.g. gen tori 1000000 -o tori1m.dae)")
         }
         (Some(other), _) => bail!("gen: unknown scene '{other}' (expected cornell or tori)"),
-        (None, _) => bail!("gen: which scene? (see gen --help)"),
+        (None, _) => bail!("gen: which scene? (see pathtracer gen --help)"),
     };
     pathtracer::staged::write_file(&output, |w| w.write_all(text.as_bytes()))?;
     outln!("wrote {}", output.display())

@@ -4,29 +4,52 @@
 
 use std::path::{Path, PathBuf};
 
+use clap::Args;
+
 use super::{check_output, Report};
 use pathtracer::accel::AccelKind;
 use pathtracer::farm::{self, PartFile, PartHeader};
 use pathtracer::render::{RenderConfig, RenderOutput};
 use pathtracer::{bail, Error, Result};
 
-const USAGE: &str = "\
-Usage: pathtracer merge PART.ptpart... -f OUT.png|OUT.exr [--quiet]
-       pathtracer part-info PART.ptpart...
+/// `pathtracer merge`.
+#[derive(Args, Debug, Clone)]
+#[command(
+    about = "Join the parts of a farm render into its image, exactly",
+    long_about = "Joins the parts of one render (pathtracer --part K/N, --samples, --crop) into \
+the image the whole render gives, byte for byte. It refuses parts of different scenes, flags or \
+renderer versions, and any pixel sample missing or held by two parts. With -a it also writes \
+NAME_rate.png. It prints the render statistics summed over the parts.",
+    arg_required_else_help = true
+)]
+pub struct MergeArgs {
+    /// The parts (written by pathtracer --part K/N, --samples, --crop)
+    #[arg(value_name = "PART.ptpart")]
+    parts: Vec<PathBuf>,
+    /// The image: OUT.png or OUT.exr
+    #[arg(short = 'f', value_name = "OUT")]
+    output: Vec<PathBuf>,
+    /// Accepted for symmetry with rendering (merge shows no progress line)
+    #[arg(long, short = 'q')]
+    quiet: bool,
+}
 
-merge joins the parts of one render (pathtracer --part K/N, --samples, --crop) into the image
-the whole render gives, byte for byte. It refuses parts of different scenes, flags or
-renderer versions, and any pixel sample missing or held by two parts. With -a it also writes
-NAME_rate.png. It prints the render statistics summed over the parts.
+/// `pathtracer part-info`.
+#[derive(Args, Debug, Clone)]
+#[command(
+    about = "Check parts and print what each holds (one JSON line each)",
+    long_about = "Checks each part (a damaged or truncated file is an error) and prints one JSON \
+line per part: file, renderer, scene, scene hash, flags, crop, samples.",
+    arg_required_else_help = true
+)]
+pub struct PartInfoArgs {
+    /// The parts to check
+    #[arg(value_name = "PART.ptpart")]
+    parts: Vec<String>,
+}
 
-part-info checks each part (a damaged or truncated file is an error) and prints one JSON
-line per part: file, renderer, scene, scene hash, flags, crop, samples.";
-
-pub fn run(args: &[String]) -> Result<()> {
-    if args.is_empty() || args.iter().any(|a| a == "-h" || a == "--help") {
-        return outln!("{USAGE}");
-    }
-    let (parts, output) = parse_args(args)?;
+pub fn run(args: MergeArgs) -> Result<()> {
+    let (parts, output) = check(args)?;
     let output = output.ok_or_else(|| Error::new("merge: no output given (-f OUT.png|OUT.exr)"))?;
     let ext = output.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     if !matches!(ext.as_deref(), Some("png") | Some("exr")) {
@@ -63,38 +86,19 @@ pub fn run(args: &[String]) -> Result<()> {
     report.finish()
 }
 
-fn parse_args(args: &[String]) -> Result<(Vec<PathBuf>, Option<PathBuf>)> {
-    let (mut parts, mut output) = (Vec::new(), None);
-    let mut it = args.iter();
-    while let Some(arg) = it.next() {
-        match arg.as_str() {
-            "-f" => {
-                let v = it.next().ok_or_else(|| Error::new("-f needs a value"))?;
-                if output.replace(PathBuf::from(v)).is_some() {
-                    bail!("merge: -f given twice");
-                }
-            }
-            "--quiet" | "-q" => {}
-            a if a.starts_with('-') && a.len() > 1 => {
-                bail!("merge: unknown option '{a}' (see --help)")
-            }
-            p => parts.push(PathBuf::from(p)),
-        }
+fn check(args: MergeArgs) -> Result<(Vec<PathBuf>, Option<PathBuf>)> {
+    if args.output.len() > 1 {
+        bail!("merge: -f given twice");
     }
-    if parts.is_empty() {
+    if args.parts.is_empty() {
         bail!("merge: no part files given");
     }
-    Ok((parts, output))
+    Ok((args.parts, args.output.into_iter().next()))
 }
 
-pub fn run_info(args: &[String]) -> Result<()> {
-    if args.is_empty() || args.iter().any(|a| a == "-h" || a == "--help") {
-        return outln!("{USAGE}");
-    }
-    if let Some(a) = args.iter().find(|a| a.starts_with('-') && a.len() > 1) {
-        bail!("part-info: unknown option '{a}' (see --help)");
-    }
+pub fn run_info(args: PartInfoArgs) -> Result<()> {
     let infos: Vec<String> = args
+        .parts
         .iter()
         .map(|p| Ok(info_json(p, &farm::read_part(Path::new(p))?.header)))
         .collect::<Result<_>>()?;

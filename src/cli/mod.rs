@@ -1,5 +1,6 @@
-//! The command line: subcommands parse their arguments into library calls. Every user error
-//! is one line on stderr and exit code 2.
+//! The command line: clap parses the arguments (`command.rs` holds the definition and maps
+//! clap's errors to ours; each subcommand's module its flags), then the subcommands call the
+//! library. Every user error is one line on stderr and exit code 2.
 //!
 //! All printing goes through [`write_stdout`] and [`write_stderr`] (the `outln!`, `out!` and
 //! `errln!` macros), never `println!`, which panics when stdout is full or closed. A failed
@@ -29,11 +30,13 @@ macro_rules! errln {
 
 pub mod bench;
 pub mod chart;
+pub mod command;
 pub mod compare;
 pub mod converge;
 pub mod gen;
 pub mod merge;
 pub mod render;
+pub mod render_args;
 pub mod signals;
 
 use std::fmt;

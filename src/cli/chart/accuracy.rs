@@ -35,6 +35,7 @@
 
 use std::path::{Path, PathBuf};
 
+use clap::{ArgAction, Args};
 use pathtracer::accel::{Accel, AccelKind};
 use pathtracer::convergence::{self, Point};
 use pathtracer::integrator::{DirectLighting, Integrator};
@@ -54,64 +55,82 @@ struct Curve {
     points: Vec<Point>,
 }
 
+/// `pathtracer chart accuracy`.
+#[derive(Args, Debug, Clone)]
+#[command(
+    about = "Relative RMSE against render time for every integrator, one SVG (and CSV) per depth",
+    long_about = "Relative RMSE against render time for every integrator, one SVG (and CSV) per \
+ray depth, in OUT_DIR.\n\n--peer FILE.jsonl adds another renderer's runs as dashed series: the \
+lines (one flat JSON object each, with scene, size, m, spp, renderer, seconds, rel_noise) whose \
+scene is SCENE's file name, at each chart's depth m, one series per renderer and size; the file \
+is checked before anything renders."
+)]
+pub struct AccuracyArgs {
+    /// The scene
+    #[arg(value_name = "SCENE.dae", default_value = "../shared/scenes/cs184/sky/CBbunny.dae")]
+    scene: PathBuf,
+    /// Where the charts go (an existing directory)
+    #[arg(value_name = "OUT_DIR", default_value = "assets/charts")]
+    out_dir: PathBuf,
+    /// Image size [default: 160 120]
+    #[arg(short = 'r', value_names = ["W", "H"], num_args = 2, action = ArgAction::Set)]
+    resolution: Option<Vec<String>>,
+    /// Samples per pixel of the references
+    #[arg(long, value_name = "N", default_value = "1024", value_parser = |s: &str| num("--ref-spp", s))]
+    ref_spp: u32,
+    /// Sample counts, comma-separated [default: 1,2,4,8,16,32,64]
+    #[arg(long = "spp", value_name = "LIST")]
+    spps: Option<String>,
+    /// Worker threads
+    #[arg(short = 't', value_name = "N", default_value = "2", value_parser = |s: &str| num("-t", s))]
+    threads: u32,
+    /// Ray depths, one chart each, comma-separated [default: 1,5]
+    #[arg(long, value_name = "LIST")]
+    depths: Option<String>,
+    /// Another renderer's runs (JSON Lines) drawn as dashed series
+    #[arg(long, value_name = "FILE.jsonl")]
+    peer: Option<PathBuf>,
+    /// Refuse a scene file larger than N bytes [default: 1073741824, 1 GiB]
+    #[arg(long, value_name = "N",
+          value_parser = |s: &str| crate::cli::parse_byte_count("--max-scene-bytes", s))]
+    max_scene_bytes: Option<u64>,
+}
+
+/// A positive number for `flag`; the error names the flag and the text it got.
+fn num(flag: &str, s: &str) -> Result<u32, pathtracer::Error> {
+    s.parse().ok().filter(|&v| v > 0).ok_or_else(|| {
+        pathtracer::Error::new(format!("{flag}: expected a positive number, got '{s}'"))
+    })
+}
+
+/// A comma-separated list of numbers of at least `min` (spp: 1, depths: 0).
+fn list(flag: &str, s: &str, min: u32) -> Result<Vec<u32>, String> {
+    s.split(',')
+        .map(|t| {
+            t.trim().parse::<u32>().ok().filter(|&v| v >= min).ok_or(format!(
+                "{flag}: expected a comma-separated list of numbers of at least {min}, got '{s}'"
+            ))
+        })
+        .collect()
+}
+
 /// `pathtracer chart accuracy ...`: errors become the CLI's one-line errors.
-pub fn run(args: &[String]) -> pathtracer::Result<()> {
+pub fn run(args: AccuracyArgs) -> pathtracer::Result<()> {
     run_with(args).map_err(pathtracer::Error::new)
 }
 
-fn run_with(args: &[String]) -> Result<(), String> {
-    let scene_path = PathBuf::from(
-        args.first().cloned().unwrap_or("../shared/scenes/cs184/sky/CBbunny.dae".into()),
-    );
-    let out_dir = PathBuf::from(args.get(1).cloned().unwrap_or("assets/charts".into()));
-    let (mut w, mut h, mut ref_spp, mut threads) = (160u32, 120u32, 1024u32, 2usize);
-    let mut spps: Vec<u32> = vec![1, 2, 4, 8, 16, 32, 64];
-    let mut depths: Vec<u32> = vec![1, 5];
-    let mut peer_path: Option<PathBuf> = None;
-    let mut max_scene_bytes = scene::collada::DEFAULT_MAX_SCENE_BYTES;
-    // Every flag error names its flag and the text it got.
-    let num = |flag: &str, s: Option<&String>| -> Result<u32, String> {
-        let s = s.ok_or(format!("{flag}: expected a positive number, got nothing"))?;
-        s.parse()
-            .ok()
-            .filter(|&v| v > 0)
-            .ok_or(format!("{flag}: expected a positive number, got '{s}'"))
+fn run_with(args: AccuracyArgs) -> Result<(), String> {
+    let AccuracyArgs { scene: scene_path, out_dir, ref_spp, peer: peer_path, .. } = args;
+    let (w, h) = match &args.resolution {
+        Some(r) => (num("-r width", &r[0]), num("-r height", &r[1])),
+        None => (Ok(160), Ok(120)),
     };
-    // A comma-separated list of numbers of at least `min` (spp: 1, depths: 0).
-    let list = |flag: &str, s: Option<&String>, min: u32| -> Result<Vec<u32>, String> {
-        let s = s.ok_or(format!("{flag}: expected a comma-separated list, got nothing"))?;
-        s.split(',')
-            .map(|t| {
-                t.trim().parse::<u32>().ok().filter(|&v| v >= min).ok_or(format!(
-                    "{flag}: expected a comma-separated list of numbers of at least {min}, got '{s}'"
-                ))
-            })
-            .collect()
-    };
-    let mut i = 2;
-    while i < args.len() {
-        match args[i].as_str() {
-            "-r" => {
-                (w, h) = (num("-r width", args.get(i + 1))?, num("-r height", args.get(i + 2))?);
-                i += 1;
-            }
-            "--ref-spp" => ref_spp = num("--ref-spp", args.get(i + 1))?,
-            "--spp" => spps = list("--spp", args.get(i + 1), 1)?,
-            "--depths" => depths = list("--depths", args.get(i + 1), 0)?,
-            "-t" => threads = num("-t", args.get(i + 1))? as usize,
-            "--peer" => {
-                let file = args.get(i + 1).ok_or("--peer: expected a JSON Lines file")?;
-                peer_path = Some(PathBuf::from(file));
-            }
-            "--max-scene-bytes" => {
-                let text = args.get(i + 1).map_or("", String::as_str);
-                max_scene_bytes = crate::cli::parse_byte_count("--max-scene-bytes", text)
-                    .map_err(|e| e.to_string())?;
-            }
-            other => return Err(format!("unknown option '{other}'")),
-        }
-        i += 2;
-    }
+    let (w, h) = (w.map_err(|e| e.to_string())?, h.map_err(|e| e.to_string())?);
+    let threads = args.threads as usize;
+    let spps =
+        args.spps.as_deref().map_or(Ok(vec![1, 2, 4, 8, 16, 32, 64]), |s| list("--spp", s, 1))?;
+    let depths = args.depths.as_deref().map_or(Ok(vec![1, 5]), |s| list("--depths", s, 0))?;
+    let max_scene_bytes = args.max_scene_bytes.unwrap_or(scene::collada::DEFAULT_MAX_SCENE_BYTES);
     if !out_dir.is_dir() {
         return Err(format!("{}: not a directory", out_dir.display()));
     }

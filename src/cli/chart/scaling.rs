@@ -12,6 +12,7 @@
 
 use std::collections::BTreeMap;
 
+use clap::Args;
 use pathtracer::bench::BenchRecord;
 use plotters::prelude::*;
 
@@ -24,15 +25,28 @@ struct Row {
     bytes_per_triangle: f64,
 }
 
-/// `pathtracer chart scaling ...`: errors become the CLI's one-line errors.
-pub fn run(args: &[String]) -> pathtracer::Result<()> {
-    run_with(args).map_err(pathtracer::Error::new)
+/// `pathtracer chart scaling`.
+#[derive(Args, Debug, Clone)]
+#[command(
+    about = "Mrays/s, build time and bytes per triangle against triangle count, from `pathtracer \
+bench --json` lines"
+)]
+pub struct ScalingArgs {
+    /// `pathtracer bench --json` lines
+    #[arg(value_name = "BENCH.jsonl")]
+    input: String,
+    /// The chart to write
+    #[arg(value_name = "OUT.svg")]
+    output: String,
 }
 
-fn run_with(args: &[String]) -> Result<(), String> {
-    let [input, output] = args else {
-        return Err("usage: pathtracer chart scaling BENCH.jsonl OUT.svg".into());
-    };
+/// `pathtracer chart scaling ...`: errors become the CLI's one-line errors.
+pub fn run(args: ScalingArgs) -> pathtracer::Result<()> {
+    run_with(&args).map_err(pathtracer::Error::new)
+}
+
+fn run_with(args: &ScalingArgs) -> Result<(), String> {
+    let ScalingArgs { input, output } = args;
     let text = std::fs::read_to_string(input).map_err(|e| format!("{input}: {e}"))?;
     let records = BenchRecord::parse_lines(&text, input).map_err(|e| e.to_string())?;
     let rows: Vec<Row> = records.iter().map(row).collect();
