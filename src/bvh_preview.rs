@@ -14,6 +14,7 @@ use crate::scene::{Camera, Scene};
 
 /// The colour mixed into the node's pixels, and how much of it.
 pub const TINT: Vec3 = Vec3::new(1.0, 0.35, 0.05);
+/// The weight of [`TINT`] in a node pixel's colour (the rest is the rendered colour).
 pub const TINT_WEIGHT: f32 = 0.6;
 /// The colour of the box's edges (no normal colour 0.5 n + 0.5 is pure yellow).
 pub const OUTLINE: Vec3 = Vec3::new(1.0, 1.0, 0.0);

@@ -14,16 +14,27 @@ use std::path::{Path, PathBuf};
 pub enum Error {
     /// A file could not be read or written; `message` is what failed and the system's reason
     /// (`cannot read: No such file or directory`).
-    Io { path: PathBuf, message: String },
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// What failed and why, one line.
+        message: String,
+    },
     /// A scene file was read but is not a scene we can render (malformed XML, not COLLADA, a
     /// dangling reference, a non-finite number, too many triangles...). `path` is `None` for
     /// scene text parsed without a file.
-    Scene { path: Option<PathBuf>, message: String },
+    Scene {
+        /// The scene file, if there is one.
+        path: Option<PathBuf>,
+        /// What is wrong with it, one line.
+        message: String,
+    },
     /// Anything else a caller passed in: an out-of-range option, an image of the wrong size, a
     /// BVH path off the tree, a failed print.
     Invalid(String),
 }
 
+/// The crate's result type: every fallible function fails with an [`Error`].
 pub type Result<T> = std::result::Result<T, Error>;
 
 impl Error {

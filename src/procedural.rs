@@ -30,6 +30,7 @@ pub struct DaeWriter {
 /// A 4x4 row-major matrix as COLLADA's `<matrix>` wants it.
 pub type Matrix = [[f32; 4]; 4];
 
+/// The identity matrix: a node placed where its mesh is.
 pub const IDENTITY: Matrix =
     [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
 
@@ -45,10 +46,17 @@ const CAMERA_ABOVE: Matrix =
 /// What a surface is made of, as the CGL profile (or a plain phong diffuse colour) says it.
 #[derive(Debug, Clone, Copy)]
 pub enum Bsdf {
+    /// Lambertian with this albedo (a plain phong diffuse colour).
     Diffuse(Vec3),
+    /// An emitter of this radiance (CGL `<emission>`).
     Emission(Vec3),
+    /// A perfect mirror of this reflectance (CGL `<mirror>`).
     Mirror(Vec3),
-    Glass { ior: f32 },
+    /// Smooth glass with white reflectance and transmittance (CGL `<glass>`).
+    Glass {
+        /// Index of refraction.
+        ior: f32,
+    },
 }
 
 impl DaeWriter {
@@ -221,6 +229,7 @@ fn matrix_element(m: &Matrix) -> String {
     format!("<matrix sid=\"transform\">{}</matrix>", numbers.join(" "))
 }
 
+/// The matrix that translates by `t`.
 pub fn translation(t: Vec3) -> Matrix {
     [[1.0, 0.0, 0.0, t.x], [0.0, 1.0, 0.0, t.y], [0.0, 0.0, 1.0, t.z], [0.0, 0.0, 0.0, 1.0]]
 }

@@ -40,6 +40,7 @@ pub struct Outputs {
 }
 
 impl Outputs {
+    /// An empty set.
     pub fn new() -> Self {
         Self::default()
     }

@@ -44,6 +44,7 @@ pub const WIDE_LEAF: usize = 8;
 /// Which structure to build.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum AccelKind {
+    /// The 8-wide BVH collapsed from a binned-SAH binary BVH (the default).
     #[default]
     Bvh,
     /// Every triangle tested for every ray that enters the scene box (`--no-bvh`): leaves of
@@ -72,13 +73,18 @@ pub enum AccelKind {
 /// - `sphere_tests`: ray-sphere tests (spheres are not in the BVH).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct TraceStats {
+    /// Queries traced (a packet counts its active lanes).
     pub rays: u64,
+    /// Ray-box tests, one per ray per child box.
     pub node_tests: u64,
+    /// Ray-triangle tests.
     pub triangle_tests: u64,
+    /// Ray-sphere tests.
     pub sphere_tests: u64,
 }
 
 impl TraceStats {
+    /// Adds `o`'s counts to these, field by field (merging the counts of threads or tiles).
     pub fn add(&mut self, o: &TraceStats) {
         self.rays += o.rays;
         self.node_tests += o.node_tests;
@@ -87,6 +93,9 @@ impl TraceStats {
     }
 }
 
+/// The acceleration structure over one scene: the 8-wide BVH over its triangles in SoA
+/// blocks, and its spheres, tested after the triangles. Built once ([`Accel::new`],
+/// [`Accel::try_build`]), then shared read-only by every thread that traces rays.
 pub struct Accel {
     wide_nodes: Vec<WideNode>,
     tris: TriangleSoa,
@@ -204,14 +213,17 @@ impl Accel {
         self.occluded_packet::<W>(rays, blocked, &mut TraceStats::default());
     }
 
+    /// Wall time the build took (boxes, binary tree, collapse, triangle store).
     pub fn build_time(&self) -> Duration {
         self.build_time
     }
 
+    /// The scene's bounding box (triangles and spheres), as [`Scene::bounds`] gave it.
     pub fn bounds(&self) -> Aabb {
         self.bounds
     }
 
+    /// The triangles in SoA blocks, in leaf order.
     pub fn triangles(&self) -> &TriangleSoa {
         &self.tris
     }

@@ -113,7 +113,9 @@ impl<T: Copy> Stack<T> {
 /// A subtree: a child reference (`WideNode::child`) and the ray's entry distance into its box.
 #[derive(Clone, Copy, Debug)]
 pub struct Entry {
+    /// The subtree's child reference (`WideNode::child`).
     pub child: u32,
+    /// The ray's entry distance into the subtree's box.
     pub t: f32,
 }
 
@@ -358,7 +360,10 @@ pub fn occluded_subtree(
 /// scene that costs more than the overlapped latency gives back.
 /// Measured: PERF.md, "Measurements moved from doc comments".
 pub const STREAM_SMALL: usize = 2;
+/// Rays in flight for a structure over `STREAM_LARGE_BYTES` (see `STREAM_SMALL`).
 pub const STREAM_LARGE: usize = 8;
+/// Structure size (`Accel::memory_bytes`) above which it counts as large: more rays in flight,
+/// and leaves prefetched too (see `STREAM_SMALL`).
 pub const STREAM_LARGE_BYTES: usize = 16 << 20;
 
 /// One ray's closest-hit traversal as a resumable state, advanced one node or leaf at a time,

@@ -25,8 +25,11 @@ pub const NO_PRIM: u32 = u32::MAX;
 #[repr(C, align(64))]
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TriangleBlock {
+    /// The first vertex: rows x, y, z, one lane per slot.
     pub v0: [[f32; LANES]; 3],
+    /// The first edge, `v1 - v0`: rows x, y, z.
     pub e1: [[f32; LANES]; 3],
+    /// The second edge, `v2 - v0`: rows x, y, z.
     pub e2: [[f32; LANES]; 3],
     /// Scene triangle index of each slot (`NO_PRIM` for an unused slot).
     pub prim: [u32; LANES],
@@ -79,6 +82,7 @@ impl TriangleSoa {
         self.len
     }
 
+    /// Whether no slot holds a triangle.
     pub fn is_empty(&self) -> bool {
         self.len == 0
     }

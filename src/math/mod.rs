@@ -12,7 +12,9 @@ pub use ray::{Hit, Ray};
 /// by any point or box gives that point or box.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Aabb {
+    /// The lower corner.
     pub min: Vec3,
+    /// The upper corner.
     pub max: Vec3,
 }
 
@@ -23,28 +25,34 @@ impl Default for Aabb {
 }
 
 impl Aabb {
+    /// The empty box (`min = +inf`, `max = -inf`): the identity of `grow` and `union`.
     pub const EMPTY: Aabb =
         Aabb { min: Vec3::splat(f32::INFINITY), max: Vec3::splat(f32::NEG_INFINITY) };
 
+    /// The smallest box holding `points` (empty for none).
     pub fn from_points(points: &[Vec3]) -> Aabb {
         points.iter().fold(Aabb::EMPTY, |b, &p| b.grow(p))
     }
 
+    /// The smallest box holding this one and `p`.
     #[inline]
     pub fn grow(self, p: Vec3) -> Aabb {
         Aabb { min: self.min.min(p), max: self.max.max(p) }
     }
 
+    /// The smallest box holding this one and `o`.
     #[inline]
     pub fn union(self, o: Aabb) -> Aabb {
         Aabb { min: self.min.min(o.min), max: self.max.max(o.max) }
     }
 
+    /// Whether the box holds no point (`min > max` on some axis).
     #[inline]
     pub fn is_empty(&self) -> bool {
         self.min.x > self.max.x || self.min.y > self.max.y || self.min.z > self.max.z
     }
 
+    /// `max - min`, zero for the empty box.
     #[inline]
     pub fn extent(&self) -> Vec3 {
         if self.is_empty() {
@@ -54,11 +62,13 @@ impl Aabb {
         }
     }
 
+    /// The midpoint of the corners (not meaningful for the empty box).
     #[inline]
     pub fn center(&self) -> Vec3 {
         0.5 * (self.min + self.max)
     }
 
+    /// The length of the diagonal, 0 for the empty box.
     #[inline]
     pub fn diagonal(&self) -> f32 {
         self.extent().length()

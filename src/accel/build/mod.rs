@@ -43,6 +43,7 @@ impl Default for BuildParams {
 /// Depth at which the builder stops looking for SAH splits and halves ranges instead, so that
 /// the tree is never deeper than `MAX_DEPTH` whatever the input (traversal stacks are fixed).
 const SAH_DEPTH_LIMIT: usize = 40;
+/// Deepest the binary tree can be; the fixed traversal stacks are sized from it.
 pub const MAX_DEPTH: usize = 64;
 
 /// Subtrees at least this large are built in parallel with their sibling. Below it the cost
@@ -51,7 +52,9 @@ const PARALLEL_MIN: usize = 16 * 1024;
 
 /// The flat tree and the primitive order its leaves refer to.
 pub struct BuiltBvh {
+    /// The nodes in depth-first order, the root first.
     pub nodes: Vec<BvhNode>,
+    /// Input primitive indices in leaf order: a leaf's `index .. index + count` range of this.
     pub order: Vec<u32>,
 }
 
