@@ -128,7 +128,7 @@ pub fn generate_ray_sets(scene: &Scene, accel: &Accel) -> RaySets {
 
 /// The shadow rays' target: the centre of the first area light, else the first point light,
 /// else the centre of the bounding box's top face raised by a quarter of its height.
-pub fn shadow_target(scene: &Scene) -> Vec3 {
+pub(crate) fn shadow_target(scene: &Scene) -> Vec3 {
     let area = scene.lights.iter().find_map(|l| match l {
         Light::Area { position, .. } => Some(*position),
         _ => None,
@@ -313,7 +313,7 @@ const CHUNK: usize = 2048;
 /// Every ray's answer, in buffers allocated before the clock starts (as the peer harness
 /// allocates its output array before timing): closest hits for `primary` / `diffuse`,
 /// occlusion for `shadow`.
-pub struct TraceOutputs {
+pub(crate) struct TraceOutputs {
     hits: Vec<Option<Hit>>,
     blocked: Vec<bool>,
 }
@@ -321,14 +321,14 @@ pub struct TraceOutputs {
 impl TraceOutputs {
     /// Buffers for `rays` answers of `set`: occlusion flags for the shadow set, closest hits
     /// for the others.
-    pub fn new(set: RaySet, rays: usize) -> TraceOutputs {
+    pub(crate) fn new(set: RaySet, rays: usize) -> TraceOutputs {
         let (h, b) = if set.is_occlusion() { (0, rays) } else { (rays, 0) };
         TraceOutputs { hits: vec![None; h], blocked: vec![false; b] }
     }
 
     /// The checksums of the last trace and its counters: hits (occluded rays for `shadow`)
     /// and the sum of hit distances in ray order, in f64.
-    pub fn totals(&self, stats: TraceStats) -> TraceTotals {
+    pub(crate) fn totals(&self, stats: TraceStats) -> TraceTotals {
         let mut t = TraceTotals { stats, ..TraceTotals::default() };
         t.hits = self.blocked.iter().filter(|&&b| b).count() as u64;
         for h in self.hits.iter().flatten() {
@@ -343,7 +343,7 @@ impl TraceOutputs {
 /// answer to `out` (made by `TraceOutputs::new` for this set and ray count); returns the
 /// counters. Only this is timed: the checksums come from `out` afterwards.
 /// `fallback`: the packets' single-ray fallback threshold (`None`: the default of the width).
-pub fn trace_once(
+pub(crate) fn trace_once(
     accel: &Accel,
     rays: &[Ray],
     set: RaySet,

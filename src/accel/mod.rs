@@ -11,11 +11,11 @@ pub mod build;
 mod hugepage;
 mod leaf;
 pub mod node;
-pub mod packet;
+pub(crate) mod packet;
 mod packet_interval;
-pub mod traverse_packet;
+pub(crate) mod traverse_packet;
 pub mod traverse_single;
-pub mod wide_node;
+pub(crate) mod wide_node;
 
 use std::time::{Duration, Instant};
 
@@ -39,7 +39,7 @@ pub use wide_node::{WideNode, MAX_LEAF, MAX_TRIANGLES};
 /// Largest binary subtree the collapse merges into one wide leaf (`build::collapse`; 0 keeps
 /// the binary leaves). The binary SAH makes leaves of 1.7 triangles on average; the
 /// single-ray leaf test takes 8 at once. Measured (PERF.md, "Wide BVH").
-pub const WIDE_LEAF: usize = 8;
+pub(crate) const WIDE_LEAF: usize = 8;
 
 /// Which structure to build.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -234,7 +234,7 @@ impl Accel {
     }
 
     /// Whether the structure outgrows the caches (over `STREAM_LARGE_BYTES`).
-    pub fn is_large(&self) -> bool {
+    pub(crate) fn is_large(&self) -> bool {
         self.large
     }
 
@@ -447,7 +447,7 @@ impl Accel {
     }
 
     /// `intersect_packets` with an explicit single-ray fallback threshold (for measuring it).
-    pub fn intersect_packets_with<const W: usize>(
+    pub(crate) fn intersect_packets_with<const W: usize>(
         &self,
         rays: &[Ray],
         fallback: u32,
@@ -479,7 +479,7 @@ impl Accel {
     }
 
     /// `occluded_packets` with an explicit single-ray fallback threshold.
-    pub fn occluded_packets_with<const W: usize>(
+    pub(crate) fn occluded_packets_with<const W: usize>(
         &self,
         rays: &[Ray],
         fallback: u32,

@@ -60,7 +60,7 @@ impl<T: Copy + Add<Output = T> + Sub<Output = T> + Mul<Output = T>> V3<T> {
 
 /// Slack on the barycentric test, relative to the rounding-error scale of each numerator
 /// (see the module comment).
-pub const BARY_EPS: f32 = 8.0 * f32::EPSILON;
+pub(crate) const BARY_EPS: f32 = 8.0 * f32::EPSILON;
 
 impl<T: Arith> V3<T> {
     #[inline(always)]
@@ -107,7 +107,7 @@ pub fn intersect1(
 /// Returns the hit mask and t, u, v per lane; `valid` masks out lanes to ignore.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)] // one SIMD kernel: the five vectors of the test, the interval and the lane mask
-pub fn intersect_simd<V: SimdF32>(
+pub(crate) fn intersect_simd<V: SimdF32>(
     o: V3<V>,
     d: V3<V>,
     v0: V3<V>,
@@ -136,7 +136,7 @@ pub fn intersect_simd<V: SimdF32>(
 
 /// Broadcast a scalar vector to all lanes.
 #[inline(always)]
-pub fn splat3<V: SimdF32>(v: glam::Vec3) -> V3<V> {
+pub(crate) fn splat3<V: SimdF32>(v: glam::Vec3) -> V3<V> {
     V3 { x: V::splat(v.x), y: V::splat(v.y), z: V::splat(v.z) }
 }
 

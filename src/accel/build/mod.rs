@@ -13,8 +13,8 @@ mod binned_sah;
 mod collapse;
 mod pack;
 
-pub use collapse::collapse;
-pub use pack::pack_leaves;
+pub(crate) use collapse::collapse;
+pub(crate) use pack::pack_leaves;
 
 use glam::Vec4;
 
@@ -241,7 +241,7 @@ fn build_node(
 /// A balanced binary tree over `count` primitives in order, in leaves of at most `leaf`, with
 /// every node's box `min`..`max`: the brute-force oracle's tree, which every ray that enters
 /// the box walks to the end, testing every primitive.
-pub fn flat_tree(count: u32, leaf: u32, min: [f32; 3], max: [f32; 3]) -> Vec<BvhNode> {
+pub(crate) fn flat_tree(count: u32, leaf: u32, min: [f32; 3], max: [f32; 3]) -> Vec<BvhNode> {
     fn add(nodes: &mut Vec<BvhNode>, first: u32, count: u32, leaf: u32, b: ([f32; 3], [f32; 3])) {
         let at = nodes.len();
         nodes.push(BvhNode { min: b.0, index: first, max: b.1, count });
