@@ -65,7 +65,10 @@ pub fn slab_terms<V: SimdF32>(origin: &V3<V>, inv: &V3<V>) -> (V3<V>, V) {
     (V3 { x: x * m, y: y * m, z: z * m }, slack)
 }
 
-/// W rays, SoA.
+/// Up to `V::W` rays in structure-of-arrays form, one lane per ray, with the per-ray terms of
+/// the slab test precomputed; gathered by [`from_rays`](RayPacket::from_rays) and traced by
+/// [`Accel::intersect_ray_packet`](crate::Accel::intersect_ray_packet) and
+/// [`Accel::occluded_ray_packet`](crate::Accel::occluded_ray_packet).
 #[derive(Clone, Copy, Debug)]
 pub struct RayPacket<V: SimdF32> {
     /// Ray origins, one lane per ray.

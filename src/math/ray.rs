@@ -1,3 +1,5 @@
+//! Rays with their valid interval, and the hit a closest-hit query returns.
+
 use glam::Vec3;
 
 /// A ray with its valid parameter interval [t_min, t_max]. A closest-hit query shrinks `t_max`

@@ -1,3 +1,5 @@
+//! The scene's lights, as the loader places them.
+
 use crate::math::Vec3;
 
 /// Scene lights (COLLADA `instance_light`). They are not geometry: only light sampling reaches

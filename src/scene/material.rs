@@ -1,3 +1,5 @@
+//! The scene's materials: the course's closed set of BSDFs.
+
 use crate::math::Vec3;
 
 /// The closed set of BSDFs of the course scenes (CGL profile), one variant each.
