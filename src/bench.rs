@@ -20,18 +20,25 @@ use crate::scene::{Camera, Light, Scene};
 pub const RAY_SEED: u64 = 0x5EED_184B_E7C4_0001;
 /// The benchmark's image size.
 pub const WIDTH: u32 = 800;
+/// The benchmark's image height.
 pub const HEIGHT: u32 = 600;
 
+/// One of the three standard ray sets (`generate_ray_sets`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum RaySet {
+    /// Camera rays through the pixel centres.
     Primary,
+    /// One cosine-weighted bounce from each primary hit (closest hit wanted).
     Diffuse,
+    /// From each primary hit towards the benchmark light point (occlusion only).
     Shadow,
 }
 
 impl RaySet {
+    /// Every ray set, in the order they are generated and reported.
     pub const ALL: [RaySet; 3] = [RaySet::Primary, RaySet::Diffuse, RaySet::Shadow];
 
+    /// The set's name in records, ray-file names and `--ray-set`.
     pub fn name(self) -> &'static str {
         match self {
             RaySet::Primary => "primary",
@@ -40,6 +47,8 @@ impl RaySet {
         }
     }
 
+    /// The set called `s` (as [`name`](RaySet::name) spells it); anything else is an error
+    /// listing the names.
     pub fn parse(s: &str) -> crate::Result<RaySet> {
         RaySet::ALL.into_iter().find(|r| r.name() == s).ok_or_else(|| {
             crate::Error::new(format!(
@@ -56,12 +65,16 @@ impl RaySet {
 
 /// The three standard ray sets of a scene.
 pub struct RaySets {
+    /// Camera rays, one per pixel in row order.
     pub primary: Vec<Ray>,
+    /// One diffuse bounce per primary hit, in primary order.
     pub diffuse: Vec<Ray>,
+    /// One shadow ray per primary hit, in primary order.
     pub shadow: Vec<Ray>,
 }
 
 impl RaySets {
+    /// The rays of `set`.
     pub fn get(&self, set: RaySet) -> &[Ray] {
         match set {
             RaySet::Primary => &self.primary,
@@ -115,7 +128,7 @@ pub fn generate_ray_sets(scene: &Scene, accel: &Accel) -> RaySets {
 
 /// The shadow rays' target: the centre of the first area light, else the first point light,
 /// else the centre of the bounding box's top face raised by a quarter of its height.
-pub fn shadow_target(scene: &Scene) -> Vec3 {
+pub(crate) fn shadow_target(scene: &Scene) -> Vec3 {
     let area = scene.lights.iter().find_map(|l| match l {
         Light::Area { position, .. } => Some(*position),
         _ => None,
@@ -211,7 +224,9 @@ pub fn read_rays(path: &Path) -> crate::Result<Vec<Ray>> {
 pub enum Traversal {
     /// One ray at a time (what `Accel::intersect` does).
     Single,
+    /// 4 rays per packet (`wide::f32x4`).
     Packet4,
+    /// 8 rays per packet (`wide::f32x8`).
     Packet8,
     /// 16 rays per packet as two 8-wide halves (`simd::F32x16`).
     Packet16,
@@ -222,6 +237,7 @@ impl Traversal {
     pub const ALL: [Traversal; 4] =
         [Traversal::Single, Traversal::Packet4, Traversal::Packet8, Traversal::Packet16];
 
+    /// The traversal's name in records and `--traversal`.
     pub fn name(self) -> &'static str {
         match self {
             Traversal::Single => "single",
@@ -241,6 +257,8 @@ impl Traversal {
         }
     }
 
+    /// The traversal called `s` (as [`name`](Traversal::name) spells it); anything else is
+    /// an error listing the names.
     pub fn parse(s: &str) -> crate::Result<Traversal> {
         Traversal::ALL.into_iter().find(|t| t.name() == s).ok_or_else(|| {
             crate::Error::new(format!(
@@ -257,6 +275,7 @@ pub struct TraceTotals {
     pub hits: u64,
     /// Sum of hit distances (0 for the shadow set), accumulated in f64 in ray order.
     pub t_sum: f64,
+    /// The exact work counters of the traversal.
     pub stats: TraceStats,
 }
 
@@ -294,20 +313,22 @@ const CHUNK: usize = 2048;
 /// Every ray's answer, in buffers allocated before the clock starts (as the peer harness
 /// allocates its output array before timing): closest hits for `primary` / `diffuse`,
 /// occlusion for `shadow`.
-pub struct TraceOutputs {
+pub(crate) struct TraceOutputs {
     hits: Vec<Option<Hit>>,
     blocked: Vec<bool>,
 }
 
 impl TraceOutputs {
-    pub fn new(set: RaySet, rays: usize) -> TraceOutputs {
+    /// Buffers for `rays` answers of `set`: occlusion flags for the shadow set, closest hits
+    /// for the others.
+    pub(crate) fn new(set: RaySet, rays: usize) -> TraceOutputs {
         let (h, b) = if set.is_occlusion() { (0, rays) } else { (rays, 0) };
         TraceOutputs { hits: vec![None; h], blocked: vec![false; b] }
     }
 
     /// The checksums of the last trace and its counters: hits (occluded rays for `shadow`)
     /// and the sum of hit distances in ray order, in f64.
-    pub fn totals(&self, stats: TraceStats) -> TraceTotals {
+    pub(crate) fn totals(&self, stats: TraceStats) -> TraceTotals {
         let mut t = TraceTotals { stats, ..TraceTotals::default() };
         t.hits = self.blocked.iter().filter(|&&b| b).count() as u64;
         for h in self.hits.iter().flatten() {
@@ -322,7 +343,7 @@ impl TraceOutputs {
 /// answer to `out` (made by `TraceOutputs::new` for this set and ray count); returns the
 /// counters. Only this is timed: the checksums come from `out` afterwards.
 /// `fallback`: the packets' single-ray fallback threshold (`None`: the default of the width).
-pub fn trace_once(
+pub(crate) fn trace_once(
     accel: &Accel,
     rays: &[Ray],
     set: RaySet,
@@ -394,23 +415,35 @@ fn intersect_chunk(
 /// One benchmark measurement, in the units of BENCHMARK.md.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BenchResult {
+    /// The scene's name (its file name).
     pub scene: String,
+    /// Triangles in the scene.
     pub triangles: usize,
+    /// The ray set traced.
     pub ray_set: RaySet,
+    /// Rays in the set.
     pub rays: usize,
+    /// Worker threads for the build and the trace.
     pub threads: usize,
+    /// How the rays were traversed.
     pub traversal: Traversal,
+    /// Build time of the acceleration structure, in milliseconds.
     pub build_ms: f64,
+    /// Millions of rays per second of the best timed repetition.
     pub mrays_per_s: f64,
+    /// Checksums and exact counters of the trace.
     pub totals: TraceTotals,
+    /// Bytes of the acceleration structure (`Accel::memory_bytes`) per triangle.
     pub bytes_per_triangle: f64,
 }
 
 impl BenchResult {
+    /// Ray-box tests per ray of the set.
     pub fn node_tests_per_ray(&self) -> f64 {
         self.totals.stats.node_tests as f64 / self.rays.max(1) as f64
     }
 
+    /// Ray-triangle tests per ray of the set.
     pub fn triangle_tests_per_ray(&self) -> f64 {
         self.totals.stats.triangle_tests as f64 / self.rays.max(1) as f64
     }

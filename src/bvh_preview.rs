@@ -13,10 +13,11 @@ use crate::render::RenderConfig;
 use crate::scene::{Camera, Scene};
 
 /// The colour mixed into the node's pixels, and how much of it.
-pub const TINT: Vec3 = Vec3::new(1.0, 0.35, 0.05);
-pub const TINT_WEIGHT: f32 = 0.6;
+pub(crate) const TINT: Vec3 = Vec3::new(1.0, 0.35, 0.05);
+/// The weight of [`TINT`] in a node pixel's colour (the rest is the rendered colour).
+pub(crate) const TINT_WEIGHT: f32 = 0.6;
 /// The colour of the box's edges (no normal colour 0.5 n + 0.5 is pure yellow).
-pub const OUTLINE: Vec3 = Vec3::new(1.0, 1.0, 0.0);
+pub(crate) const OUTLINE: Vec3 = Vec3::new(1.0, 1.0, 0.0);
 
 /// The camera `render::render` uses for `config`: the explicit one, else the course framing.
 pub fn camera_for(scene: &Scene, config: &RenderConfig) -> Camera {
@@ -42,7 +43,7 @@ pub fn mark_node(image: &mut [Vec3], camera: &Camera, accel: &Accel, node: &Bina
 
 /// For every pixel, whether the closest hit of the ray through its centre (the ray of a
 /// one-sample render) is a triangle of `node`.
-pub fn node_pixels(camera: &Camera, accel: &Accel, node: &BinaryNode) -> Vec<bool> {
+pub(crate) fn node_pixels(camera: &Camera, accel: &Accel, node: &BinaryNode) -> Vec<bool> {
     let (w, h) = (camera.width, camera.height);
     (0..w * h)
         .into_par_iter()
@@ -58,7 +59,7 @@ pub fn node_pixels(camera: &Camera, accel: &Accel, node: &BinaryNode) -> Vec<boo
 
 /// The twelve edges of `b` in pixel coordinates (x right, y down from the top-left corner),
 /// each cut to the part in front of the camera; edges wholly behind it are left out.
-pub fn box_edges(camera: &Camera, b: Aabb) -> Vec<[(f32, f32); 2]> {
+pub(crate) fn box_edges(camera: &Camera, b: Aabb) -> Vec<[(f32, f32); 2]> {
     let corner = |i: usize| {
         let pick = |bit: usize, lo: f32, hi: f32| if i & bit == 0 { lo } else { hi };
         Vec3::new(pick(1, b.min.x, b.max.x), pick(2, b.min.y, b.max.y), pick(4, b.min.z, b.max.z))

@@ -11,6 +11,7 @@ use crate::Result;
 /// One render of a sweep.
 #[derive(Debug, Clone, Copy)]
 pub struct Point {
+    /// Samples per pixel asked for.
     pub spp: u32,
     /// Rendering time (the render loop only: not loading or BVH building, which every point
     /// of a sweep shares); the best of repeated renders for renders under 0.1 s, whose time
@@ -20,6 +21,7 @@ pub struct Point {
     pub rays: u64,
     /// Mean samples per pixel actually taken (below `spp` under adaptive sampling).
     pub mean_spp: f64,
+    /// The image's error against the reference.
     pub error: Comparison,
 }
 

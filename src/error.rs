@@ -14,16 +14,27 @@ use std::path::{Path, PathBuf};
 pub enum Error {
     /// A file could not be read or written; `message` is what failed and the system's reason
     /// (`cannot read: No such file or directory`).
-    Io { path: PathBuf, message: String },
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// What failed and why, one line.
+        message: String,
+    },
     /// A scene file was read but is not a scene we can render (malformed XML, not COLLADA, a
     /// dangling reference, a non-finite number, too many triangles...). `path` is `None` for
     /// scene text parsed without a file.
-    Scene { path: Option<PathBuf>, message: String },
+    Scene {
+        /// The scene file, if there is one.
+        path: Option<PathBuf>,
+        /// What is wrong with it, one line.
+        message: String,
+    },
     /// Anything else a caller passed in: an out-of-range option, an image of the wrong size, a
     /// BVH path off the tree, a failed print.
     Invalid(String),
 }
 
+/// The crate's result type: every fallible function fails with an [`Error`].
 pub type Result<T> = std::result::Result<T, Error>;
 
 impl Error {
@@ -86,7 +97,7 @@ impl std::error::Error for Error {}
 
 /// A vector of `len` copies of `value`, or an error naming `what` if the memory cannot be had:
 /// for buffers whose size a user chooses (`-r W H`), where `vec!` would abort the process.
-pub fn try_filled_vec<T: Clone>(len: usize, value: T, what: &str) -> Result<Vec<T>> {
+pub(crate) fn try_filled_vec<T: Clone>(len: usize, value: T, what: &str) -> Result<Vec<T>> {
     let mut v = Vec::new();
     let bytes = len.saturating_mul(std::mem::size_of::<T>());
     v.try_reserve_exact(len).map_err(|_| {
@@ -100,7 +111,11 @@ pub fn try_filled_vec<T: Clone>(len: usize, value: T, what: &str) -> Result<Vec<
 /// `max_bytes`: a regular file is judged by its size before reading, anything else (a pipe, a
 /// device such as `/dev/zero`) is read only up to the limit, and memory that cannot be had is
 /// an error, never an abort.
-pub fn read_capped(path: &Path, max_bytes: u64, too_large: impl Fn() -> Error) -> Result<Vec<u8>> {
+pub(crate) fn read_capped(
+    path: &Path,
+    max_bytes: u64,
+    too_large: impl Fn() -> Error,
+) -> Result<Vec<u8>> {
     use std::io::Read;
     let cannot_read = |e: std::io::Error| Error::io(path, "cannot read", e);
     let file = std::fs::File::open(path).map_err(cannot_read)?;

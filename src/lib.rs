@@ -83,6 +83,8 @@
 //!
 //! `.ci/module-order` checks this on every CI run.
 
+#![warn(missing_docs)]
+
 pub mod accel;
 pub mod bench;
 pub mod bvh_preview;
@@ -91,15 +93,23 @@ pub mod error;
 pub mod farm;
 pub mod film;
 pub mod geometry;
+// Documented separately (issue 15); allow lifted when done.
+#[allow(missing_docs)]
 pub mod integrator;
 pub mod math;
 pub mod metrics;
 pub mod procedural;
 pub mod render;
+// Documented separately (issue 15); allow lifted when done.
+#[allow(missing_docs)]
 pub mod sampler;
 pub mod scene;
+// Documented separately (issue 15); allow lifted when done.
+#[allow(missing_docs)]
 pub mod simd;
 pub mod staged;
+// Documented separately (issue 15); allow lifted when done.
+#[allow(missing_docs)]
 pub mod wavefront;
 
 pub use accel::{Accel, AccelKind, BuildParams, RayPacket, TraceStats};

@@ -19,8 +19,11 @@ use crate::{bail, Error, Result};
 /// A linear RGB image, row-major, row 0 at the top.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Image {
+    /// Width in pixels.
     pub width: u32,
+    /// Height in pixels.
     pub height: u32,
+    /// `width * height` linear RGB values.
     pub pixels: Vec<Vec3>,
 }
 
@@ -29,15 +32,20 @@ pub struct Image {
 pub struct RegionError {
     /// Pixels in the region.
     pub pixels: usize,
+    /// Root-mean-square error per channel.
     pub rmse: [f64; 3],
+    /// `rmse` divided by the reference's mean, per channel.
     pub rel_rmse: [f64; 3],
+    /// Mean signed error (image - reference) per channel.
     pub bias: [f64; 3],
     /// Mean of the reference per channel (the denominator of `rel_rmse`).
     pub reference_mean: [f64; 3],
     /// The three channels pooled: RMSE over all 3N values, relative to the mean of all 3N
     /// reference values, and the mean of all 3N signed errors.
     pub rmse_all: f64,
+    /// `rmse_all` relative to the mean of all 3N reference values.
     pub rel_rmse_all: f64,
+    /// The mean of all 3N signed errors.
     pub bias_all: f64,
 }
 
@@ -45,7 +53,9 @@ pub struct RegionError {
 /// its nonzero pixels.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Comparison {
+    /// The error over the whole image.
     pub image: RegionError,
+    /// The error over the mask's pixels, if a mask was given.
     pub masked: Option<RegionError>,
 }
 

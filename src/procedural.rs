@@ -19,7 +19,7 @@ use crate::sampler::Pcg32;
 
 /// A COLLADA 1.4.1 document under construction: Y up, row-major node matrices.
 #[derive(Default)]
-pub struct DaeWriter {
+pub(crate) struct DaeWriter {
     effects: String,
     materials: String,
     geometries: String,
@@ -28,9 +28,10 @@ pub struct DaeWriter {
 }
 
 /// A 4x4 row-major matrix as COLLADA's `<matrix>` wants it.
-pub type Matrix = [[f32; 4]; 4];
+pub(crate) type Matrix = [[f32; 4]; 4];
 
-pub const IDENTITY: Matrix =
+/// The identity matrix: a node placed where its mesh is.
+pub(crate) const IDENTITY: Matrix =
     [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
 
 /// Half a turn about y: c = M(0, 0, -1) = +z, an eye in front of the scene looking down -z.
@@ -44,11 +45,18 @@ const CAMERA_ABOVE: Matrix =
 
 /// What a surface is made of, as the CGL profile (or a plain phong diffuse colour) says it.
 #[derive(Debug, Clone, Copy)]
-pub enum Bsdf {
+pub(crate) enum Bsdf {
+    /// Lambertian with this albedo (a plain phong diffuse colour).
     Diffuse(Vec3),
+    /// An emitter of this radiance (CGL `<emission>`).
     Emission(Vec3),
+    /// A perfect mirror of this reflectance (CGL `<mirror>`).
     Mirror(Vec3),
-    Glass { ior: f32 },
+    /// Smooth glass with white reflectance and transmittance (CGL `<glass>`).
+    Glass {
+        /// Index of refraction.
+        ior: f32,
+    },
 }
 
 impl DaeWriter {
@@ -221,7 +229,8 @@ fn matrix_element(m: &Matrix) -> String {
     format!("<matrix sid=\"transform\">{}</matrix>", numbers.join(" "))
 }
 
-pub fn translation(t: Vec3) -> Matrix {
+/// The matrix that translates by `t`.
+pub(crate) fn translation(t: Vec3) -> Matrix {
     [[1.0, 0.0, 0.0, t.x], [0.0, 1.0, 0.0, t.y], [0.0, 0.0, 1.0, t.z], [0.0, 0.0, 0.0, 1.0]]
 }
 

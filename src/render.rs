@@ -17,7 +17,9 @@ use crate::wavefront::{self, RenderContext, RenderStats, Tile, Workspace};
 /// Everything a render needs besides the scene, with the course's defaults.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RenderConfig {
+    /// Image width in pixels (`-r`).
     pub width: u32,
+    /// Image height in pixels (`-r`).
     pub height: u32,
     /// Samples per pixel (`-s`).
     pub spp: u32,
@@ -36,9 +38,12 @@ pub struct RenderConfig {
     pub keep_sums: bool,
     /// Worker threads (`-t`); 0 = all cores.
     pub threads: usize,
+    /// Seed of the random numbers, which depend only on (seed, pixel, sample): the same seed
+    /// gives the same image whatever the thread count.
     pub seed: u64,
     /// How random numbers are drawn (`--sampler`).
     pub sampler: SamplerKind,
+    /// What a sample computes: normal shading, or direct lighting / path tracing.
     pub integrator: Integrator,
     /// Print a progress line on stderr for renders longer than a second.
     pub progress: bool,
@@ -80,25 +85,33 @@ impl Default for RenderConfig {
 /// A pixel rectangle `x0..x1` x `y0..y1` (ends excluded), row 0 at the top.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Rect {
+    /// First column.
     pub x0: u32,
+    /// First row.
     pub y0: u32,
+    /// Column past the last.
     pub x1: u32,
+    /// Row past the last.
     pub y1: u32,
 }
 
 impl Rect {
+    /// The whole `width` x `height` image.
     pub fn of_image(width: u32, height: u32) -> Rect {
         Rect { x0: 0, y0: 0, x1: width, y1: height }
     }
 
+    /// Columns in the rectangle.
     pub fn width(&self) -> u32 {
         self.x1 - self.x0
     }
 
+    /// Rows in the rectangle.
     pub fn height(&self) -> u32 {
         self.y1 - self.y0
     }
 
+    /// Pixels in the rectangle.
     pub fn pixel_count(&self) -> usize {
         self.width() as usize * self.height() as usize
     }
@@ -119,8 +132,11 @@ impl std::fmt::Display for Rect {
 
 /// A rendered image (linear radiance, row-major, row 0 at the top) and how it was made.
 pub struct RenderOutput {
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
+    /// `width * height` linear RGB values (black outside the window).
     pub pixels: Vec<Vec3>,
     /// Samples taken by each pixel (all equal to `spp` unless adaptive sampling stopped early).
     pub samples: Vec<u32>,
@@ -128,7 +144,9 @@ pub struct RenderOutput {
     pub window: Rect,
     /// The exact radiance sums of the window's pixels, row-major (with `keep_sums`; else empty).
     pub sums: Vec<ExactRgb>,
+    /// Rays and work counted over the render.
     pub stats: RenderStats,
+    /// Wall time of the render loop (not the setup before it).
     pub time: Duration,
 }
 

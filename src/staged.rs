@@ -40,6 +40,7 @@ pub struct Outputs {
 }
 
 impl Outputs {
+    /// An empty set.
     pub fn new() -> Self {
         Self::default()
     }
@@ -119,7 +120,7 @@ const NAME_MAX: usize = 255;
 /// `dir/NAME` -> `dir/.NAME.tmp-PID`, hidden beside its file so the rename stays on one file
 /// system. A name too long for that keeps its first bytes and a hash of the whole, so that a
 /// legal file name never makes an illegal temporary.
-pub fn temporary_path(path: &Path) -> PathBuf {
+pub(crate) fn temporary_path(path: &Path) -> PathBuf {
     let name = path.file_name().map_or_else(|| "out".into(), |n| n.to_os_string());
     let suffix = format!(".tmp-{}", std::process::id());
     let bytes = name.as_encoded_bytes();

@@ -24,6 +24,7 @@ pub struct BinaryNode {
     /// count; an interior node `traversal_cost + (A_L C_L + A_R C_R) / A`, the expected work
     /// of a ray that enters its box (child boxes entered with their area ratio).
     pub sah_cost: f32,
+    /// Whether the node is a leaf of the binary tree (no step below it is possible).
     pub is_leaf: bool,
 }
 

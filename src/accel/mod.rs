@@ -11,11 +11,11 @@ pub mod build;
 mod hugepage;
 mod leaf;
 pub mod node;
-pub mod packet;
+pub(crate) mod packet;
 mod packet_interval;
-pub mod traverse_packet;
+pub(crate) mod traverse_packet;
 pub mod traverse_single;
-pub mod wide_node;
+pub(crate) mod wide_node;
 
 use std::time::{Duration, Instant};
 
@@ -39,11 +39,12 @@ pub use wide_node::{WideNode, MAX_LEAF, MAX_TRIANGLES};
 /// Largest binary subtree the collapse merges into one wide leaf (`build::collapse`; 0 keeps
 /// the binary leaves). The binary SAH makes leaves of 1.7 triangles on average; the
 /// single-ray leaf test takes 8 at once. Measured (PERF.md, "Wide BVH").
-pub const WIDE_LEAF: usize = 8;
+pub(crate) const WIDE_LEAF: usize = 8;
 
 /// Which structure to build.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum AccelKind {
+    /// The 8-wide BVH collapsed from a binned-SAH binary BVH (the default).
     #[default]
     Bvh,
     /// Every triangle tested for every ray that enters the scene box (`--no-bvh`): leaves of
@@ -72,13 +73,18 @@ pub enum AccelKind {
 /// - `sphere_tests`: ray-sphere tests (spheres are not in the BVH).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct TraceStats {
+    /// Queries traced (a packet counts its active lanes).
     pub rays: u64,
+    /// Ray-box tests, one per ray per child box.
     pub node_tests: u64,
+    /// Ray-triangle tests.
     pub triangle_tests: u64,
+    /// Ray-sphere tests.
     pub sphere_tests: u64,
 }
 
 impl TraceStats {
+    /// Adds `o`'s counts to these, field by field (merging the counts of threads or tiles).
     pub fn add(&mut self, o: &TraceStats) {
         self.rays += o.rays;
         self.node_tests += o.node_tests;
@@ -87,6 +93,9 @@ impl TraceStats {
     }
 }
 
+/// The acceleration structure over one scene: the 8-wide BVH over its triangles in SoA
+/// blocks, and its spheres, tested after the triangles. Built once ([`Accel::new`],
+/// [`Accel::try_build`]), then shared read-only by every thread that traces rays.
 pub struct Accel {
     wide_nodes: Vec<WideNode>,
     tris: TriangleSoa,
@@ -204,14 +213,17 @@ impl Accel {
         self.occluded_packet::<W>(rays, blocked, &mut TraceStats::default());
     }
 
+    /// Wall time the build took (boxes, binary tree, collapse, triangle store).
     pub fn build_time(&self) -> Duration {
         self.build_time
     }
 
+    /// The scene's bounding box (triangles and spheres), as [`Scene::bounds`] gave it.
     pub fn bounds(&self) -> Aabb {
         self.bounds
     }
 
+    /// The triangles in SoA blocks, in leaf order.
     pub fn triangles(&self) -> &TriangleSoa {
         &self.tris
     }
@@ -222,7 +234,7 @@ impl Accel {
     }
 
     /// Whether the structure outgrows the caches (over `STREAM_LARGE_BYTES`).
-    pub fn is_large(&self) -> bool {
+    pub(crate) fn is_large(&self) -> bool {
         self.large
     }
 
@@ -435,7 +447,7 @@ impl Accel {
     }
 
     /// `intersect_packets` with an explicit single-ray fallback threshold (for measuring it).
-    pub fn intersect_packets_with<const W: usize>(
+    pub(crate) fn intersect_packets_with<const W: usize>(
         &self,
         rays: &[Ray],
         fallback: u32,
@@ -467,7 +479,7 @@ impl Accel {
     }
 
     /// `occluded_packets` with an explicit single-ray fallback threshold.
-    pub fn occluded_packets_with<const W: usize>(
+    pub(crate) fn occluded_packets_with<const W: usize>(
         &self,
         rays: &[Ray],
         fallback: u32,

@@ -65,17 +65,26 @@ pub fn slab_terms<V: SimdF32>(origin: &V3<V>, inv: &V3<V>) -> (V3<V>, V) {
     (V3 { x: x * m, y: y * m, z: z * m }, slack)
 }
 
-/// W rays, SoA.
+/// Up to `V::W` rays in structure-of-arrays form, one lane per ray, with the per-ray terms of
+/// the slab test precomputed; gathered by [`from_rays`](RayPacket::from_rays) and traced by
+/// [`Accel::intersect_ray_packet`](crate::Accel::intersect_ray_packet) and
+/// [`Accel::occluded_ray_packet`](crate::Accel::occluded_ray_packet).
 #[derive(Clone, Copy, Debug)]
 pub struct RayPacket<V: SimdF32> {
+    /// Ray origins, one lane per ray.
     pub origin: V3<V>,
+    /// Ray directions (not necessarily normalised), one lane per ray.
     pub dir: V3<V>,
     /// `safe_recip` of each direction component.
     pub inv_dir: V3<V>,
     /// `-origin * inv_dir` per axis and the slab slack (`slab_terms`).
     pub neg_o_inv: V3<V>,
+    /// How far each lane's box tests widen the slab interval on both sides (`SLACK` times the
+    /// largest `|origin * inv_dir|`, `slab_terms`).
     pub slack: V,
+    /// Start of each ray's interval.
     pub t_min: V,
+    /// End of each ray's interval; closest-hit traversal shrinks it to the nearest hit so far.
     pub t_max: V,
     /// Lane mask: all-ones for rays to trace.
     pub active: V,
@@ -130,15 +139,20 @@ impl<V: SimdF32> RayPacket<V> {
 /// The closest hits of a packet, per lane.
 #[derive(Clone, Copy, Debug)]
 pub struct PacketHits<V: SimdF32> {
+    /// Hit distance per lane, meaningful where `hit_bits` is set.
     pub t: V,
+    /// Barycentric `u` of the hit per lane.
     pub u: V,
+    /// Barycentric `v` of the hit per lane.
     pub v: V,
+    /// Primitive id per lane (`geometry::prim`), meaningful where `hit_bits` is set.
     pub prim: [u32; MAX_W],
     /// Bit `i` set iff lane `i` hit something.
     pub hit_bits: u32,
 }
 
 impl<V: SimdF32> PacketHits<V> {
+    /// No lane has hit anything yet: `t` infinite, `hit_bits` 0.
     pub fn none() -> PacketHits<V> {
         PacketHits {
             t: V::splat(f32::INFINITY),
@@ -168,6 +182,7 @@ impl<V: SimdF32> PacketHits<V> {
         }
     }
 
+    /// Lane `i`'s hit, `None` where nothing was hit.
     pub fn get(&self, i: usize) -> Option<Hit> {
         (self.hit_bits & (1 << i) != 0).then(|| Hit {
             t: self.t.lane(i),

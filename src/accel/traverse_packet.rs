@@ -37,7 +37,9 @@ pub const INTERVAL_MIN_W: usize = 16;
 /// finished one ray at a time. Measured (PERF.md, "Packets on the wide tree"): handing over
 /// lone lanes saves up to 7 % of the instructions on incoherent rays and costs at most 0.2 %
 /// on coherent ones; handing over two or three lanes was worse.
+/// The threshold for packets of 4 rays or fewer.
 pub const FALLBACK_4: u32 = 1;
+/// The threshold for packets of 8 and 16 rays.
 pub const FALLBACK_8: u32 = 1;
 
 /// The default fallback threshold for width `W`.
@@ -99,6 +101,7 @@ pub struct PacketStack<V> {
 }
 
 impl<V> PacketStack<V> {
+    /// Empty stacks with room for the deepest traversal (`(ARITY - 1) * MAX_DEPTH` entries).
     pub fn new() -> PacketStack<V> {
         PacketStack {
             closest: Vec::with_capacity((ARITY - 1) * MAX_DEPTH),

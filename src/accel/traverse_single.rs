@@ -112,14 +112,16 @@ impl<T: Copy> Stack<T> {
 
 /// A subtree: a child reference (`WideNode::child`) and the ray's entry distance into its box.
 #[derive(Clone, Copy, Debug)]
-pub struct Entry {
+pub(crate) struct Entry {
+    /// The subtree's child reference (`WideNode::child`).
     pub child: u32,
+    /// The ray's entry distance into the subtree's box.
     pub t: f32,
 }
 
 impl Entry {
     /// The whole tree (node 0), entered at `t_min`.
-    pub fn root(ray: &Ray) -> Entry {
+    pub(crate) fn root(ray: &Ray) -> Entry {
         Entry { child: 0, t: ray.t_min }
     }
 }
@@ -232,7 +234,7 @@ pub fn intersect(
 
 /// Closest hit within the subtree `start` (whose box the caller has tested; packets hand
 /// their last few lanes over here), improving on `best`, whose distance is `ray.t_max`.
-pub fn intersect_subtree(
+pub(crate) fn intersect_subtree(
     nodes: &[WideNode],
     tris: &TriangleSoa,
     start: Entry,
@@ -315,7 +317,7 @@ pub fn occluded(nodes: &[WideNode], tris: &TriangleSoa, ray: &Ray, stats: &mut T
 /// boxes around their origin (entered at t_min, so nearest) hold the surface they leave, which
 /// rarely blocks them; what blocks them lies farther along.
 /// Measured: PERF.md, "Measurements moved from doc comments".
-pub fn occluded_subtree(
+pub(crate) fn occluded_subtree(
     nodes: &[WideNode],
     tris: &TriangleSoa,
     start: Entry,
@@ -357,9 +359,12 @@ pub fn occluded_subtree(
 /// history of the traversal loop, and each prefetch costs instructions; on a cache-resident
 /// scene that costs more than the overlapped latency gives back.
 /// Measured: PERF.md, "Measurements moved from doc comments".
-pub const STREAM_SMALL: usize = 2;
-pub const STREAM_LARGE: usize = 8;
-pub const STREAM_LARGE_BYTES: usize = 16 << 20;
+pub(crate) const STREAM_SMALL: usize = 2;
+/// Rays in flight for a structure over `STREAM_LARGE_BYTES` (see `STREAM_SMALL`).
+pub(crate) const STREAM_LARGE: usize = 8;
+/// Structure size (`Accel::memory_bytes`) above which it counts as large: more rays in flight,
+/// and leaves prefetched too (see `STREAM_SMALL`).
+pub(crate) const STREAM_LARGE_BYTES: usize = 16 << 20;
 
 /// One ray's closest-hit traversal as a resumable state, advanced one node or leaf at a time,
 /// so that several rays' traversals can be interleaved on one thread (`intersect_stream`).

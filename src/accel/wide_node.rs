@@ -70,7 +70,7 @@ const _: () = assert!(ARITY == 8);
 
 impl WideNode {
     /// A node with every slot empty.
-    pub const EMPTY_NODE: WideNode = WideNode {
+    pub(crate) const EMPTY_NODE: WideNode = WideNode {
         bounds: [
             [f32::INFINITY; ARITY],
             [f32::NEG_INFINITY; ARITY],
@@ -83,7 +83,7 @@ impl WideNode {
     };
 
     /// Sets slot `i` to a child with the given box.
-    pub fn set_child(&mut self, i: usize, min: [f32; 3], max: [f32; 3], child: u32) {
+    pub(crate) fn set_child(&mut self, i: usize, min: [f32; 3], max: [f32; 3], child: u32) {
         for axis in 0..3 {
             self.bounds[2 * axis][i] = min[axis];
             self.bounds[2 * axis + 1][i] = max[axis];

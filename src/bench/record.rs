@@ -8,24 +8,37 @@ use crate::{Error, Result};
 /// One measurement of one ray set with one traversal, in the units of BENCHMARK.md.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct BenchRecord {
+    /// The scene's name (its file name).
     pub scene: String,
+    /// Triangles in the scene.
     pub triangles: usize,
+    /// The ray set's name (`primary`, `diffuse` or `shadow`).
     pub ray_set: String,
+    /// Rays in the set.
     pub rays: usize,
+    /// Worker threads for the build and the trace.
     pub threads: usize,
+    /// The traversal's name (`single`, `packet4`, `packet8` or `packet16`).
     pub traversal: String,
+    /// Build time of the acceleration structure, in milliseconds.
     pub build_ms: f64,
+    /// Millions of rays per second of the best timed repetition.
     pub mrays_per_s: f64,
+    /// Ray-box tests per ray.
     pub node_tests_per_ray: f64,
+    /// Ray-triangle tests per ray.
     pub triangle_tests_per_ray: f64,
     /// Checksum: rays that hit (closest-hit sets) or are occluded (shadow set).
     pub hits: u64,
     /// Checksum: the sum of hit distances in ray order.
     pub t_sum: f64,
+    /// Bytes of the acceleration structure per triangle.
     pub bytes_per_triangle: f64,
-    /// Exact totals over the set; 0 when read from a line written before they were recorded.
+    /// Exact ray-box tests over the set; 0 when read from a line written before the totals
+    /// were recorded.
     #[serde(default)]
     pub node_tests: u64,
+    /// Exact ray-triangle tests over the set; 0 when read from such an older line.
     #[serde(default)]
     pub triangle_tests: u64,
 }

@@ -11,15 +11,21 @@ use crate::{bail, Result};
 
 /// The merged render.
 pub struct Merged {
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
+    /// Samples per pixel of the whole render (`-s`).
     pub spp: u32,
     /// Whether the parts were rendered with `-a` (then a rate image goes with the image).
     pub adaptive: bool,
+    /// Mean radiance per pixel, row-major, row 0 at the top.
     pub pixels: Vec<Vec3>,
+    /// Samples taken per pixel, in the same order.
     pub samples: Vec<u32>,
     /// Statistics summed over the parts, and their rendering times summed.
     pub stats: RenderStats,
+    /// The parts' rendering times, summed (seconds).
     pub seconds: f64,
 }
 

@@ -35,22 +35,32 @@ const PIXEL_BYTES: usize = 64;
 /// What a part is: everything but its pixels.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PartHeader {
+    /// The version of the renderer that wrote the part.
     pub renderer: String,
+    /// The scene's file name (for messages).
     pub scene: String,
+    /// FNV-1a 64 of the scene file's bytes: parts of different scenes never merge.
     pub scene_hash: u64,
     /// `farm::image_flags` of the render.
     pub flags: String,
+    /// The pixels of the part.
     pub crop: Rect,
+    /// The samples of each pixel the part holds (end excluded).
     pub samples: Range<u32>,
+    /// The part's render statistics.
     pub stats: RenderStats,
+    /// The part's rendering time in seconds.
     pub seconds: f64,
 }
 
 /// A part: its header, and per pixel of its crop the sample count and exact radiance sum.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PartFile {
+    /// Everything but the pixels.
     pub header: PartHeader,
+    /// Samples taken per pixel of the crop, row by row.
     pub counts: Vec<u32>,
+    /// Exact radiance sum per pixel of the crop, in the same order.
     pub sums: Vec<ExactRgb>,
 }
 

@@ -15,7 +15,9 @@ use crate::{bail, Result};
 /// One part of a render: these pixels, these samples of each.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Part {
+    /// The part's pixels.
     pub crop: Rect,
+    /// The samples of each pixel (end excluded).
     pub samples: Range<u32>,
 }
 

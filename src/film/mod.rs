@@ -10,6 +10,5 @@
 
 mod output;
 
-pub use output::{
-    rate_image_path, stage_image, stage_rate_image, tone_map, write_atomically, write_image,
-};
+pub(crate) use output::write_atomically;
+pub use output::{rate_image_path, stage_image, stage_rate_image, write_image};

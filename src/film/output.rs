@@ -11,7 +11,7 @@ use crate::{bail, Result};
 
 /// The course's display transform of one channel: one stop of exposure, gamma 2.2, clamped.
 #[inline]
-pub fn tone_map(l: f32) -> u8 {
+pub(crate) fn tone_map(l: f32) -> u8 {
     let v = (std::f32::consts::SQRT_2 * l).max(0.0).powf(1.0 / 2.2).clamp(0.0, 1.0);
     (v * 255.0 + 0.5) as u8
 }

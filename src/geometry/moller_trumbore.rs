@@ -28,12 +28,16 @@ use crate::simd::{Arith, SimdF32};
 /// Three lanes-wide coordinates.
 #[derive(Clone, Copy, Debug)]
 pub struct V3<T> {
+    /// The x coordinates, one per lane.
     pub x: T,
+    /// The y coordinates, one per lane.
     pub y: T,
+    /// The z coordinates, one per lane.
     pub z: T,
 }
 
 impl<T: Copy + Add<Output = T> + Sub<Output = T> + Mul<Output = T>> V3<T> {
+    /// The cross product `self x b`, lane by lane.
     #[inline(always)]
     pub fn cross(self, b: V3<T>) -> V3<T> {
         V3 {
@@ -42,10 +46,12 @@ impl<T: Copy + Add<Output = T> + Sub<Output = T> + Mul<Output = T>> V3<T> {
             z: self.x * b.y - self.y * b.x,
         }
     }
+    /// The dot product, lane by lane (no fused multiply-add).
     #[inline(always)]
     pub fn dot(self, b: V3<T>) -> T {
         self.x * b.x + self.y * b.y + self.z * b.z
     }
+    /// The difference `self - b`, lane by lane.
     #[inline(always)]
     pub fn minus(self, b: V3<T>) -> V3<T> {
         V3 { x: self.x - b.x, y: self.y - b.y, z: self.z - b.z }
@@ -54,7 +60,7 @@ impl<T: Copy + Add<Output = T> + Sub<Output = T> + Mul<Output = T>> V3<T> {
 
 /// Slack on the barycentric test, relative to the rounding-error scale of each numerator
 /// (see the module comment).
-pub const BARY_EPS: f32 = 8.0 * f32::EPSILON;
+pub(crate) const BARY_EPS: f32 = 8.0 * f32::EPSILON;
 
 impl<T: Arith> V3<T> {
     #[inline(always)]
@@ -101,7 +107,7 @@ pub fn intersect1(
 /// Returns the hit mask and t, u, v per lane; `valid` masks out lanes to ignore.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)] // one SIMD kernel: the five vectors of the test, the interval and the lane mask
-pub fn intersect_simd<V: SimdF32>(
+pub(crate) fn intersect_simd<V: SimdF32>(
     o: V3<V>,
     d: V3<V>,
     v0: V3<V>,
@@ -130,10 +136,11 @@ pub fn intersect_simd<V: SimdF32>(
 
 /// Broadcast a scalar vector to all lanes.
 #[inline(always)]
-pub fn splat3<V: SimdF32>(v: glam::Vec3) -> V3<V> {
+pub(crate) fn splat3<V: SimdF32>(v: glam::Vec3) -> V3<V> {
     V3 { x: V::splat(v.x), y: V::splat(v.y), z: V::splat(v.z) }
 }
 
+/// A scalar vector as a one-lane `V3` (for [`intersect1`]).
 #[inline(always)]
 pub fn scalar3(v: glam::Vec3) -> V3<f32> {
     V3 { x: v.x, y: v.y, z: v.z }

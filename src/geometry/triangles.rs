@@ -24,9 +24,12 @@ pub const NO_PRIM: u32 = u32::MAX;
 /// Eight triangle slots, one SIMD lane each: rows are [x, y, z] of v0, e1 and e2.
 #[repr(C, align(64))]
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct TriangleBlock {
+pub(crate) struct TriangleBlock {
+    /// The first vertex: rows x, y, z, one lane per slot.
     pub v0: [[f32; LANES]; 3],
+    /// The first edge, `v1 - v0`: rows x, y, z.
     pub e1: [[f32; LANES]; 3],
+    /// The second edge, `v2 - v0`: rows x, y, z.
     pub e2: [[f32; LANES]; 3],
     /// Scene triangle index of each slot (`NO_PRIM` for an unused slot).
     pub prim: [u32; LANES],
@@ -54,7 +57,7 @@ pub struct TriangleSoa {
 impl TriangleSoa {
     /// Stores triangle `corners(p)` in slot `i` for every `p = slots[i]` other than
     /// `NO_PRIM`; the other slots stay empty.
-    pub fn from_slots(corners: impl Fn(usize) -> [Vec3; 3], slots: &[u32]) -> TriangleSoa {
+    pub(crate) fn from_slots(corners: impl Fn(usize) -> [Vec3; 3], slots: &[u32]) -> TriangleSoa {
         let mut blocks = vec![TriangleBlock::EMPTY; slots.len().div_ceil(LANES)];
         let mut len = 0;
         for (i, &p) in slots.iter().enumerate() {
@@ -79,25 +82,26 @@ impl TriangleSoa {
         self.len
     }
 
+    /// Whether no slot holds a triangle.
     pub fn is_empty(&self) -> bool {
         self.len == 0
     }
 
     /// The blocks, for leaf tests and for `madvise`.
     #[inline(always)]
-    pub fn blocks(&self) -> &[TriangleBlock] {
+    pub(crate) fn blocks(&self) -> &[TriangleBlock] {
         &self.blocks
     }
 
     /// The block holding slot `i`, and the slot's lane in it.
     #[inline(always)]
-    pub fn slot(&self, i: usize) -> (&TriangleBlock, usize) {
+    pub(crate) fn slot(&self, i: usize) -> (&TriangleBlock, usize) {
         (&self.blocks[i / LANES], i % LANES)
     }
 
     /// (v0, e1, e2) of slot `i`.
     #[inline(always)]
-    pub fn vertex_edges(&self, i: usize) -> [Vec3; 3] {
+    pub(crate) fn vertex_edges(&self, i: usize) -> [Vec3; 3] {
         let (b, l) = self.slot(i);
         let get = |row: &[[f32; LANES]; 3]| Vec3::new(row[0][l], row[1][l], row[2][l]);
         [get(&b.v0), get(&b.e1), get(&b.e2)]

@@ -12,7 +12,9 @@ pub use ray::{Hit, Ray};
 /// by any point or box gives that point or box.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Aabb {
+    /// The lower corner.
     pub min: Vec3,
+    /// The upper corner.
     pub max: Vec3,
 }
 
@@ -23,28 +25,34 @@ impl Default for Aabb {
 }
 
 impl Aabb {
+    /// The empty box (`min = +inf`, `max = -inf`): the identity of `grow` and `union`.
     pub const EMPTY: Aabb =
         Aabb { min: Vec3::splat(f32::INFINITY), max: Vec3::splat(f32::NEG_INFINITY) };
 
+    /// The smallest box holding `points` (empty for none).
     pub fn from_points(points: &[Vec3]) -> Aabb {
         points.iter().fold(Aabb::EMPTY, |b, &p| b.grow(p))
     }
 
+    /// The smallest box holding this one and `p`.
     #[inline]
     pub fn grow(self, p: Vec3) -> Aabb {
         Aabb { min: self.min.min(p), max: self.max.max(p) }
     }
 
+    /// The smallest box holding this one and `o`.
     #[inline]
     pub fn union(self, o: Aabb) -> Aabb {
         Aabb { min: self.min.min(o.min), max: self.max.max(o.max) }
     }
 
+    /// Whether the box holds no point (`min > max` on some axis).
     #[inline]
     pub fn is_empty(&self) -> bool {
         self.min.x > self.max.x || self.min.y > self.max.y || self.min.z > self.max.z
     }
 
+    /// `max - min`, zero for the empty box.
     #[inline]
     pub fn extent(&self) -> Vec3 {
         if self.is_empty() {
@@ -54,11 +62,13 @@ impl Aabb {
         }
     }
 
+    /// The midpoint of the corners (not meaningful for the empty box).
     #[inline]
     pub fn center(&self) -> Vec3 {
         0.5 * (self.min + self.max)
     }
 
+    /// The length of the diagonal, 0 for the empty box.
     #[inline]
     pub fn diagonal(&self) -> f32 {
         self.extent().length()
@@ -74,7 +84,7 @@ impl Aabb {
 
 /// An orthonormal basis (t, b, n) around unit `n` (Duff et al. 2017, branchless).
 #[inline]
-pub fn orthonormal_basis(n: Vec3) -> (Vec3, Vec3) {
+pub(crate) fn orthonormal_basis(n: Vec3) -> (Vec3, Vec3) {
     let sign = 1.0f32.copysign(n.z);
     let a = -1.0 / (sign + n.z);
     let b = n.x * n.y * a;
@@ -90,7 +100,7 @@ pub fn orthonormal_basis(n: Vec3) -> (Vec3, Vec3) {
 /// `integrator::diffuse` repeats lane by lane, so scalar and SIMD shading agree bit for bit;
 /// libm's `sincosf` called once per lane cost 3 % of a render (PERF.md "Whole renders").
 #[inline]
-pub fn sincos_turns(u: f32) -> (f32, f32) {
+pub(crate) fn sincos_turns(u: f32) -> (f32, f32) {
     let quadrant =
         (u >= 0.125) as u32 + (u >= 0.375) as u32 + (u >= 0.625) as u32 + (u >= 0.875) as u32;
     let x = (u - quadrant as f32 * 0.25) * std::f32::consts::TAU;
@@ -105,9 +115,9 @@ pub fn sincos_turns(u: f32) -> (f32, f32) {
 }
 
 /// sin x = x + x z (s1 + z (s2 + z s3)), z = x^2, on [-pi/4, pi/4] (Cephes `sinf`).
-pub const SIN_COEFFS: [f32; 3] = [-1.666_665_5e-1, 8.332_161e-3, -1.951_529_6e-4];
+pub(crate) const SIN_COEFFS: [f32; 3] = [-1.666_665_5e-1, 8.332_161e-3, -1.951_529_6e-4];
 /// cos x = 1 - z / 2 + z^2 (c1 + z (c2 + z c3)), z = x^2, on [-pi/4, pi/4] (Cephes `cosf`).
-pub const COS_COEFFS: [f32; 3] = [4.166_664_6e-2, -1.388_731_6e-3, 2.443_315_7e-5];
+pub(crate) const COS_COEFFS: [f32; 3] = [4.166_664_6e-2, -1.388_731_6e-3, 2.443_315_7e-5];
 
 #[inline(always)]
 fn sin_poly(x: f32, z: f32) -> f32 {

@@ -1,24 +1,33 @@
+//! Rays with their valid interval, and the hit a closest-hit query returns.
+
 use glam::Vec3;
 
 /// A ray with its valid parameter interval [t_min, t_max]. A closest-hit query shrinks `t_max`
 /// to the hit distance, so later tests only accept nearer hits (the course convention).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Ray {
+    /// Where the ray starts (`t = 0`).
     pub origin: Vec3,
+    /// The direction; distances `t` are in multiples of its length.
     pub dir: Vec3,
+    /// Start of the valid interval.
     pub t_min: f32,
+    /// End of the valid interval.
     pub t_max: f32,
 }
 
 impl Ray {
+    /// A ray over [0, inf).
     pub fn new(origin: Vec3, dir: Vec3) -> Ray {
         Ray { origin, dir, t_min: 0.0, t_max: f32::INFINITY }
     }
 
+    /// A ray over [t_min, t_max].
     pub fn segment(origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Ray {
         Ray { origin, dir, t_min, t_max }
     }
 
+    /// The point `origin + t * dir`.
     #[inline]
     pub fn at(&self, t: f32) -> Vec3 {
         self.origin + t * self.dir
@@ -30,8 +39,12 @@ impl Ray {
 /// barycentric coordinates of vertices 1 and 2 for triangles (unused for spheres).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Hit {
+    /// Distance along the ray ([`Ray::at`] gives the point).
     pub t: f32,
+    /// Barycentric weight of vertex 1 (triangles).
     pub u: f32,
+    /// Barycentric weight of vertex 2 (triangles).
     pub v: f32,
+    /// The primitive id (`geometry::prim`).
     pub prim: u32,
 }

@@ -31,16 +31,23 @@ const FIT_H: f32 = 600.0;
 /// A framed camera for one image size.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Camera {
+    /// Where the rays start.
     pub eye: Vec3,
+    /// The point the camera looks at (the bounding box's centre).
     pub target: Vec3,
     /// Camera-to-world basis: x right, y up, z towards the viewer (the camera looks along -z).
     pub x: Vec3,
+    /// The basis' up axis.
     pub y: Vec3,
+    /// The basis' axis towards the viewer.
     pub z: Vec3,
-    /// tan(hFov / 2) and tan(vFov / 2) for this image size.
+    /// tan(hFov / 2) for this image size.
     pub tan_half_h: f32,
+    /// tan(vFov / 2) for this image size.
     pub tan_half_v: f32,
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
 }
 

@@ -22,11 +22,16 @@ pub const MAX_TRIANGLES: usize = 1 << 24;
 /// An analytic sphere (CGL `sphere/radius`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sphere {
+    /// World-space centre.
     pub center: Vec3,
+    /// Radius.
     pub radius: f32,
+    /// Index into [`Scene::materials`].
     pub material: u32,
 }
 
+/// A loaded scene: triangles and spheres in world space, their materials, the lights and the
+/// camera description. [`Scene::load`] reads one from a COLLADA file.
 #[derive(Debug, Clone, Default)]
 pub struct Scene {
     /// World-space vertex positions of all meshes.
@@ -38,9 +43,13 @@ pub struct Scene {
     pub triangles: Vec<[u32; 3]>,
     /// Material index of each triangle (parallel to `triangles`).
     pub triangle_materials: Vec<u32>,
+    /// The analytic spheres.
     pub spheres: Vec<Sphere>,
+    /// Every material, indexed by `triangle_materials` and `Sphere::material`.
     pub materials: Vec<Material>,
+    /// The lights (not geometry: only light sampling reaches them).
     pub lights: Vec<Light>,
+    /// The file's camera, framed per image size by [`Camera::new`].
     pub camera: CameraDesc,
     /// Non-fatal problems met while loading (e.g. a skipped spot light), printed by the CLI.
     pub warnings: Vec<String>,

@@ -13,8 +13,8 @@ mod binned_sah;
 mod collapse;
 mod pack;
 
-pub use collapse::collapse;
-pub use pack::pack_leaves;
+pub(crate) use collapse::collapse;
+pub(crate) use pack::pack_leaves;
 
 use glam::Vec4;
 
@@ -43,6 +43,7 @@ impl Default for BuildParams {
 /// Depth at which the builder stops looking for SAH splits and halves ranges instead, so that
 /// the tree is never deeper than `MAX_DEPTH` whatever the input (traversal stacks are fixed).
 const SAH_DEPTH_LIMIT: usize = 40;
+/// Deepest the binary tree can be; the fixed traversal stacks are sized from it.
 pub const MAX_DEPTH: usize = 64;
 
 /// Subtrees at least this large are built in parallel with their sibling. Below it the cost
@@ -51,7 +52,9 @@ const PARALLEL_MIN: usize = 16 * 1024;
 
 /// The flat tree and the primitive order its leaves refer to.
 pub struct BuiltBvh {
+    /// The nodes in depth-first order, the root first.
     pub nodes: Vec<BvhNode>,
+    /// Input primitive indices in leaf order: a leaf's `index .. index + count` range of this.
     pub order: Vec<u32>,
 }
 
@@ -238,7 +241,7 @@ fn build_node(
 /// A balanced binary tree over `count` primitives in order, in leaves of at most `leaf`, with
 /// every node's box `min`..`max`: the brute-force oracle's tree, which every ray that enters
 /// the box walks to the end, testing every primitive.
-pub fn flat_tree(count: u32, leaf: u32, min: [f32; 3], max: [f32; 3]) -> Vec<BvhNode> {
+pub(crate) fn flat_tree(count: u32, leaf: u32, min: [f32; 3], max: [f32; 3]) -> Vec<BvhNode> {
     fn add(nodes: &mut Vec<BvhNode>, first: u32, count: u32, leaf: u32, b: ([f32; 3], [f32; 3])) {
         let at = nodes.len();
         nodes.push(BvhNode { min: b.0, index: first, max: b.1, count });
