@@ -464,6 +464,7 @@ fn continue_diffuse(
 
 /// Queues what lane `l` of a batch produced for path `path`, as the scalar path would have:
 /// its shadow rays in light-draw order, then its bounce.
+#[inline]
 pub fn queue_lane(
     out: &DiffuseOutputs,
     l: usize,
