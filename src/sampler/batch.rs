@@ -18,9 +18,6 @@ pub struct DrawBatch {
     /// Per slot: the Sobol dimension key of `(decision, depth)`.
     dimensions: Vec<u32>,
     numbers: Vec<[f32; 2]>,
-    /// Scratch for the Sobol pass: per number, its sequence key and index.
-    keys: Vec<u32>,
-    indices: Vec<u32>,
 }
 
 impl DrawBatch {
@@ -63,22 +60,11 @@ impl DrawBatch {
             }
             SamplerKind::Sobol => {
                 let stride = self.slots.len();
-                let total = order.len() * stride;
-                self.keys.resize(total, 0);
-                self.indices.resize(total, 0);
-                let rows =
-                    self.keys.chunks_exact_mut(stride).zip(self.indices.chunks_exact_mut(stride));
-                for ((keys, indices), &p) in rows.zip(order) {
-                    let sampler = &samplers[p as usize];
-                    for (k, (&(_, sub, count), &dimension)) in
-                        self.slots.iter().zip(&self.dimensions).enumerate()
-                    {
-                        keys[k] = sampler.pixel_key ^ dimension;
-                        indices[k] = sampler.sample.wrapping_mul(count).wrapping_add(sub);
-                    }
+                self.numbers.resize(order.len() * stride, [0.0; 2]);
+                let blocks = order.chunks(LANES).zip(self.numbers.chunks_mut(LANES * stride));
+                for (paths, out) in blocks {
+                    draw_sobol_block(&self.slots, &self.dimensions, samplers, paths, out);
                 }
-                self.numbers.resize(self.keys.len(), [0.0; 2]);
-                sobol_pass(&self.keys, &self.indices, &mut self.numbers);
             }
         }
     }
@@ -91,26 +77,35 @@ impl DrawBatch {
     }
 }
 
-/// `out[k] = sobol_2d(mix32(keys[k]), indices[k])`: branch-free, independent per k and all in
-/// 32-bit integers, so it compiles to SIMD over 8 lanes.
-fn sobol_pass(keys: &[u32], indices: &[u32], out: &mut [[f32; 2]]) {
-    const W: usize = 8;
-    let blocks = out.chunks_exact_mut(W).zip(keys.chunks_exact(W).zip(indices.chunks_exact(W)));
-    for (o, (k, i)) in blocks {
-        // Fixed-size blocks: the compiler turns the lane loop into 8-wide integer SIMD.
-        let (k, i): (&[u32; W], &[u32; W]) = (k.try_into().unwrap(), i.try_into().unwrap());
-        let mut x = [0.0f32; W];
-        let mut y = [0.0f32; W];
-        for l in 0..W {
-            [x[l], y[l]] = sobol::sobol_2d(sobol::mix32(k[l]), i[l]);
-        }
-        for l in 0..W {
-            o[l] = [x[l], y[l]];
-        }
+/// Paths whose numbers one SIMD pass draws.
+const LANES: usize = 8;
+
+/// Every planned number of up to `LANES` paths (`out`: their rows of `slots.len()` numbers).
+/// Each slot's numbers come from one fixed-size lane loop, branch-free and all in 32-bit
+/// integers, which the compiler turns into 8-wide SIMD; lanes past `paths.len()` compute
+/// numbers nobody reads.
+fn draw_sobol_block(
+    slots: &[(Decision, u32, u32)],
+    dimensions: &[u32],
+    samplers: &[PathSampler],
+    paths: &[u32],
+    out: &mut [[f32; 2]],
+) {
+    let stride = slots.len();
+    let (mut pixel_key, mut sample) = ([0u32; LANES], [0u32; LANES]);
+    for (l, &p) in paths.iter().enumerate() {
+        let s = &samplers[p as usize];
+        (pixel_key[l], sample[l]) = (s.pixel_key, s.sample);
     }
-    let done = out.len() / W * W;
-    for ((o, &key), &index) in out[done..].iter_mut().zip(&keys[done..]).zip(&indices[done..]) {
-        *o = sobol::sobol_2d(sobol::mix32(key), index);
+    for (k, (&(_, sub, count), &dimension)) in slots.iter().zip(dimensions).enumerate() {
+        let (mut x, mut y) = ([0.0f32; LANES], [0.0f32; LANES]);
+        for l in 0..LANES {
+            let key = sobol::mix32(pixel_key[l] ^ dimension);
+            [x[l], y[l]] = sobol::sobol_2d(key, sample[l].wrapping_mul(count).wrapping_add(sub));
+        }
+        for l in 0..paths.len() {
+            out[l * stride + k] = [x[l], y[l]];
+        }
     }
 }
 
