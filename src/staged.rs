@@ -71,24 +71,57 @@ impl Outputs {
         self.stage(path, |w| w.write_all(bytes))
     }
 
-    /// Renames every temporary over its file. The renames run under the registry's lock, so a
-    /// signal never lands between two of them; a rename that fails (rare: the temporary sits
-    /// beside its file) removes the temporaries not yet renamed.
+    /// Renames every temporary over its file, all or none. The renames run under the
+    /// registry's lock, so a signal never lands between two of them. Before them, each file
+    /// that exists gets a second name (a hard link, so it never disappears); if a rename fails
+    /// (rare: the temporary sits beside its file), the files already replaced get their old
+    /// contents back, the ones that did not exist are removed again, and no temporary is left.
+    /// On a file system without hard links a failed commit cannot restore the files it already
+    /// replaced.
     pub fn commit(mut self) -> Result<()> {
         let mut registry = temporaries();
         let staged = std::mem::take(&mut self.staged);
+        let backups: Vec<Option<PathBuf>> =
+            staged.iter().map(|(_, path)| keep_old_contents(path, &mut registry)).collect();
         let mut result = Ok(());
+        let mut replaced = 0;
         for (tmp, path) in &staged {
             if result.is_ok() {
                 result = std::fs::rename(tmp, path).map_err(|e| Error::io(path, "cannot write", e));
+                replaced += result.is_ok() as usize;
             }
             if result.is_err() {
                 let _ = std::fs::remove_file(tmp);
             }
             registry.retain(|t| t != tmp);
         }
+        if result.is_err() {
+            for ((_, path), backup) in staged.iter().zip(&backups).take(replaced) {
+                let _ = match backup {
+                    Some(backup) => std::fs::rename(backup, path),
+                    None => std::fs::remove_file(path),
+                };
+            }
+        }
+        for backup in backups.iter().flatten() {
+            let _ = std::fs::remove_file(backup);
+            registry.retain(|t| t != backup);
+        }
         result
     }
+}
+
+/// A second name for `path`'s current contents (`dir/.NAME.old-PID`, registered like a
+/// temporary), if it is a file and the file system allows hard links; `None` otherwise.
+fn keep_old_contents(path: &Path, registry: &mut Vec<PathBuf>) -> Option<PathBuf> {
+    if !std::fs::symlink_metadata(path).is_ok_and(|m| m.is_file()) {
+        return None;
+    }
+    let backup = sibling_path(path, "old");
+    let _ = std::fs::remove_file(&backup);
+    std::fs::hard_link(path, &backup).ok()?;
+    registry.push(backup.clone());
+    Some(backup)
 }
 
 impl Drop for Outputs {
@@ -121,8 +154,13 @@ const NAME_MAX: usize = 255;
 /// system. A name too long for that keeps its first bytes and a hash of the whole, so that a
 /// legal file name never makes an illegal temporary.
 pub(crate) fn temporary_path(path: &Path) -> PathBuf {
+    sibling_path(path, "tmp")
+}
+
+/// `dir/NAME` -> `dir/.NAME.KIND-PID` (see `temporary_path`).
+fn sibling_path(path: &Path, kind: &str) -> PathBuf {
     let name = path.file_name().map_or_else(|| "out".into(), |n| n.to_os_string());
-    let suffix = format!(".tmp-{}", std::process::id());
+    let suffix = format!(".{kind}-{}", std::process::id());
     let bytes = name.as_encoded_bytes();
     if 1 + bytes.len() + suffix.len() <= NAME_MAX {
         let mut tmp = std::ffi::OsString::from(".");
@@ -187,6 +225,31 @@ mod tests {
         assert_eq!(std::fs::read_to_string(&a).unwrap(), "new");
         assert_eq!(std::fs::read_to_string(dir.join("c.txt")).unwrap(), "c");
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 2);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A rename that fails after others succeeded (here: the last target is a directory) puts
+    /// the replaced file's old contents back and removes the file that was new.
+    #[test]
+    fn a_failed_rename_undoes_the_renames_before_it() {
+        let dir = scratch("mid-commit");
+        let (a, new, blocker) = (dir.join("a.txt"), dir.join("new.txt"), dir.join("sub"));
+        std::fs::write(&a, "old").unwrap();
+        std::fs::create_dir(&blocker).unwrap();
+        std::fs::write(blocker.join("inside"), "x").unwrap();
+        let mut outputs = Outputs::new();
+        outputs.stage_bytes(&a, b"new").unwrap();
+        outputs.stage_bytes(&new, b"new").unwrap();
+        outputs.stage_bytes(&blocker, b"new").unwrap();
+        let err = outputs.commit().unwrap_err().to_string();
+        assert!(err.contains("sub"), "{err}");
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "old");
+        assert!(!new.exists(), "a file that did not exist was left");
+        let mut left: Vec<_> =
+            std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+        left.sort();
+        assert_eq!(left, ["a.txt", "sub"], "temporaries or second names were left");
+        assert!(!temporaries().iter().any(|t| t.starts_with(&dir)));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
