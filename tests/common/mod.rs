@@ -3,6 +3,8 @@
 
 use std::path::PathBuf;
 
+pub mod cli;
+
 /// The course scenes: `$PT_SCENES`, else `../shared/scenes/cs184` beside the repository.
 /// Returns `None` (and prints "skipped: scenes not found") when they are absent, so tests that
 /// need them skip cleanly on a clone without `shared/`. `.ci/run` always has them and sets
