@@ -33,6 +33,7 @@ pub mod chart;
 pub mod command;
 pub mod compare;
 pub mod converge;
+pub mod cpu;
 pub mod gen;
 pub mod merge;
 pub mod render;
