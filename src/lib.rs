@@ -93,23 +93,15 @@ pub mod error;
 pub mod farm;
 pub mod film;
 pub mod geometry;
-// Documented separately (issue 15); allow lifted when done.
-#[allow(missing_docs)]
 pub mod integrator;
 pub mod math;
 pub mod metrics;
 pub mod procedural;
 pub mod render;
-// Documented separately (issue 15); allow lifted when done.
-#[allow(missing_docs)]
 pub mod sampler;
 pub mod scene;
-// Documented separately (issue 15); allow lifted when done.
-#[allow(missing_docs)]
 pub mod simd;
 pub mod staged;
-// Documented separately (issue 15); allow lifted when done.
-#[allow(missing_docs)]
 pub mod wavefront;
 
 pub use accel::{Accel, AccelKind, BuildParams, RayPacket, TraceStats};

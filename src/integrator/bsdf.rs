@@ -10,7 +10,9 @@ use crate::scene::Material;
 /// A sampled incident direction and its weight f * |cos| / pdf.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BsdfSample {
+    /// Unit incident direction, in the local shading frame.
     pub wi: Vec3,
+    /// f * |cos| / pdf: what the path's throughput is multiplied by.
     pub weight: Vec3,
     /// Solid-angle pdf; 0 for a delta (specular) lobe, where MIS does not apply.
     pub pdf: f32,
@@ -114,6 +116,7 @@ pub fn uniform_hemisphere(u1: f32, u2: f32) -> Vec3 {
     Vec3::new(r * phi.cos(), r * phi.sin(), z)
 }
 
+/// The pdf of `uniform_hemisphere`, 1 / (2 pi) per steradian.
 pub const UNIFORM_HEMISPHERE_PDF: f32 = 1.0 / (2.0 * PI);
 
 fn reflect(wo: Vec3) -> Vec3 {

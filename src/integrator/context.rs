@@ -11,20 +11,32 @@ use crate::scene::{Camera, Scene};
 
 /// What every stage reads: immutable for the whole render.
 pub struct RenderContext<'a> {
+    /// The scene being rendered.
     pub scene: &'a Scene,
+    /// The acceleration structure over `scene`'s primitives.
     pub accel: &'a Accel,
+    /// The camera that generates the primary rays.
     pub camera: &'a Camera,
+    /// The integrator the shade stage calls.
     pub integrator: &'a Integrator,
+    /// The lights next-event estimation samples (`Integrator::light_set`).
     pub lights: &'a LightSet,
+    /// Samples per pixel of the whole render, also when this one takes only some (`samples`).
     pub spp: u32,
     /// The samples of each pixel to take: `0..spp` for a whole render, less for a part of one
     /// (`render::RenderConfig::samples`).
     pub samples: std::ops::Range<u32>,
+    /// Direct-light samples (`-l`): draws per non-delta light and for the emitters, or
+    /// hemisphere directions per scene light (`-H`).
     pub light_samples: u32,
+    /// Maximum path depth (`-m`): vertices reached at this depth add only emission and spawn no
+    /// rays.
     pub max_depth: u32,
     /// Adaptive sampling: (samples per batch, tolerance), see `PixelStats::converged`.
     pub adaptive: Option<(u32, f32)>,
+    /// Seed from which every random number of the render is derived (see `sampler`).
     pub seed: u64,
+    /// How random numbers are drawn (`--sampler`).
     pub sampler: SamplerKind,
     /// Packets for coherent queues (see `stages::Coherence`); `false`: single rays only.
     pub packets: bool,
@@ -57,22 +69,28 @@ impl RenderContext<'_> {
 
 /// Where the integrator writes the work it creates.
 pub struct ShadeOutputs<'q> {
+    /// Continuation rays (bounces), traced at the next depth.
     pub next: &'q mut RayQueue,
+    /// Shadow rays (any hit): unblocked rays add their radiance to their path.
     pub shadow: &'q mut ShadowQueue,
+    /// Emission probes (closest hit) of uniform hemisphere sampling.
     pub probes: &'q mut ShadowQueue,
 }
 
 /// What shading needs to know about a hit point.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Surface {
+    /// The hit point.
     pub p: Vec3,
     /// Geometric normal (unit), as wound for triangles, outward for spheres.
     pub ng: Vec3,
     /// Shading normal (unit): interpolated vertex normals for triangles.
     pub ns: Vec3,
+    /// The material index (into `Scene::materials`).
     pub material: u32,
-    /// The primitive hit (`Hit::prim`) and the ray parameter of the hit.
+    /// The primitive hit (`Hit::prim`).
     pub prim: u32,
+    /// The ray parameter of the hit (`Hit::t`).
     pub t: f32,
 }
 
@@ -87,6 +105,7 @@ pub fn surface_material(scene: &Scene, prim: u32) -> u32 {
 }
 
 impl Surface {
+    /// Reconstructs the surface that `ray` hit at `hit`: point, normals and material.
     pub fn at(scene: &Scene, ray: &Ray, hit: &Hit) -> Surface {
         let p = ray.at(hit.t);
         if prim::is_sphere(hit.prim) {

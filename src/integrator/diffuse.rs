@@ -31,7 +31,9 @@ pub const LANES: usize = 8;
 /// reconstructing its surface reads (`load_surfaces`), so that `Surface::at` runs in lanes.
 #[derive(Default)]
 pub struct DiffuseLanes {
+    /// Lanes in use: vertices pushed so far (at most `LANES`).
     pub len: usize,
+    /// Path index of each lane's vertex (into `PathState`).
     pub path: [u32; LANES],
     /// Queue index of each vertex's ray (its random numbers in the `DrawBatch`).
     queue: [usize; LANES],
@@ -60,10 +62,13 @@ fn get(a: &[Lanes; 3], l: usize) -> Vec3 {
 }
 
 impl DiffuseLanes {
+    /// Whether all `LANES` lanes hold a vertex.
     pub fn is_full(&self) -> bool {
         self.len == LANES
     }
 
+    /// Loads a vertex into the next free lane: its path, its ray's queue index, the ray and hit,
+    /// the path's throughput and the diffuse albedo.
     pub fn push(
         &mut self,
         path: u32,
@@ -152,15 +157,18 @@ fn ray_of(r: &[f32; 8]) -> Ray {
 /// Shadow rays of one light draw, lane by lane; lane `l` is queued iff bit `l` of `valid`.
 #[derive(Default, Clone)]
 pub struct ShadowLanes {
+    /// Lanes with a shadow ray to queue, as a bit mask.
     pub valid: u32,
     rays: [[f32; 8]; LANES],
     contribution: [Lanes; 3],
 }
 
 impl ShadowLanes {
+    /// The shadow ray of lane `l`.
     pub fn ray(&self, l: usize) -> Ray {
         ray_of(&self.rays[l])
     }
+    /// What lane `l`'s shadow ray adds to its path's radiance if unblocked.
     pub fn contribution(&self, l: usize) -> Vec3 {
         get(&self.contribution, l)
     }
@@ -169,6 +177,7 @@ impl ShadowLanes {
 /// Continuation rays, lane by lane; lane `l` continues iff bit `l` of `valid`.
 #[derive(Default)]
 pub struct BounceLanes {
+    /// Lanes that continue with a bounce, as a bit mask.
     pub valid: u32,
     rays: [[f32; 8]; LANES],
     throughput: [Lanes; 3],
@@ -176,12 +185,16 @@ pub struct BounceLanes {
 }
 
 impl BounceLanes {
+    /// The continuation ray of lane `l`.
     pub fn ray(&self, l: usize) -> Ray {
         ray_of(&self.rays[l])
     }
+    /// The path throughput of lane `l` after the bounce: times the albedo, divided by the
+    /// Russian-roulette survival probability where roulette applies.
     pub fn throughput(&self, l: usize) -> Vec3 {
         get(&self.throughput, l)
     }
+    /// The solid-angle pdf of lane `l`'s bounce direction, cos / pi.
     pub fn pdf(&self, l: usize) -> f32 {
         self.pdf[l]
     }
@@ -190,7 +203,9 @@ impl BounceLanes {
 /// What one batch queues: a shadow ray per light draw and lane, and a bounce per lane.
 #[derive(Default)]
 pub struct DiffuseOutputs {
+    /// One `ShadowLanes` per light draw, in light-draw order.
     pub shadows: Vec<ShadowLanes>,
+    /// The continuation of every lane.
     pub bounce: BounceLanes,
 }
 

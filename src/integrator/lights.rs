@@ -40,12 +40,17 @@ enum Emitter {
 /// An emissive triangle as `sample_emitter` sees it.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct TriangleEmitter {
+    /// First corner.
     pub a: Vec3,
+    /// Second corner.
     pub b: Vec3,
+    /// Third corner.
     pub c: Vec3,
+    /// The emitted radiance.
     pub radiance: Vec3,
-    /// The probability of picking it, and its area.
+    /// The probability of picking it (its share of the emitters' power).
     pub pick_pdf: f32,
+    /// Its area.
     pub area: f32,
 }
 
@@ -115,6 +120,7 @@ impl AliasTable {
     }
 }
 
+/// Luminance of a linear RGB colour (Rec. 709 / sRGB weights).
 pub fn luminance(c: Vec3) -> f32 {
     0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
 }
@@ -151,6 +157,7 @@ impl LightSet {
         set
     }
 
+    /// Whether there is emissive geometry to sample (never in the course's light set).
     pub fn has_emitters(&self) -> bool {
         !self.emitters.is_empty()
     }

@@ -33,6 +33,7 @@ pub enum Integrator {
 }
 
 impl Integrator {
+    /// The integrator's name, as `--shading` takes it: `normals`, `hemisphere`, `light` or `mis`.
     pub fn name(&self) -> &'static str {
         match self {
             Integrator::Normals => "normals",
@@ -78,6 +79,10 @@ impl Integrator {
         }
     }
 
+    /// Shades the vertex of path `path` where a ray of depth `depth` hit `surface`: updates the
+    /// path's state in `paths` and queues its shadow rays, emission probes and continuation ray
+    /// in `out`. `numbers` are the vertex's planned random numbers and their layout
+    /// (`plan_draws`).
     #[allow(clippy::too_many_arguments)]
     pub fn shade_hit(
         &self,

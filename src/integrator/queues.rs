@@ -24,6 +24,7 @@ pub struct PathState {
 }
 
 impl PathState {
+    /// Empties every column, keeping the allocations.
     pub fn clear(&mut self) {
         self.pixel.clear();
         self.throughput.clear();
@@ -32,6 +33,8 @@ impl PathState {
         self.sampler.clear();
     }
 
+    /// Adds a path for pixel `pixel` with throughput 1, no radiance and a `bsdf_pdf` of 0;
+    /// returns its index.
     pub fn push(&mut self, pixel: u32, sampler: PathSampler) -> u32 {
         let id = self.pixel.len() as u32;
         self.pixel.push(pixel);
@@ -42,10 +45,12 @@ impl PathState {
         id
     }
 
+    /// The number of paths.
     pub fn len(&self) -> usize {
         self.pixel.len()
     }
 
+    /// Whether there are no paths.
     pub fn is_empty(&self) -> bool {
         self.pixel.is_empty()
     }
@@ -54,25 +59,31 @@ impl PathState {
 /// Rays waiting for a closest-hit query.
 #[derive(Default)]
 pub struct RayQueue {
+    /// The rays, as whole `Ray` records.
     pub rays: Vec<Ray>,
+    /// The path each ray belongs to (index into `PathState`).
     pub path: Vec<u32>,
 }
 
 impl RayQueue {
+    /// Empties the queue, keeping the allocations.
     pub fn clear(&mut self) {
         self.rays.clear();
         self.path.clear();
     }
 
+    /// Queues `ray` for path `path`.
     pub fn push(&mut self, ray: Ray, path: u32) {
         self.rays.push(ray);
         self.path.push(path);
     }
 
+    /// The number of queued rays.
     pub fn len(&self) -> usize {
         self.rays.len()
     }
 
+    /// Whether no ray is queued.
     pub fn is_empty(&self) -> bool {
         self.rays.is_empty()
     }
@@ -83,28 +94,35 @@ impl RayQueue {
 /// `radiance[i]` is a weight, multiplied by the emission of whatever front face the ray hits.
 #[derive(Default)]
 pub struct ShadowQueue {
+    /// The rays, as whole `Ray` records.
     pub rays: Vec<Ray>,
+    /// Per ray: the radiance it adds (shadow rays) or the weight of the emission it finds (probes).
     pub radiance: Vec<Vec3>,
+    /// The path each ray belongs to (index into `PathState`).
     pub path: Vec<u32>,
 }
 
 impl ShadowQueue {
+    /// Empties the queue, keeping the allocations.
     pub fn clear(&mut self) {
         self.rays.clear();
         self.radiance.clear();
         self.path.clear();
     }
 
+    /// Queues `ray` with its radiance (or weight) for path `path`.
     pub fn push(&mut self, ray: Ray, radiance: Vec3, path: u32) {
         self.rays.push(ray);
         self.radiance.push(radiance);
         self.path.push(path);
     }
 
+    /// The number of queued rays.
     pub fn len(&self) -> usize {
         self.rays.len()
     }
 
+    /// Whether no ray is queued.
     pub fn is_empty(&self) -> bool {
         self.rays.is_empty()
     }

@@ -24,6 +24,7 @@ pub enum SamplerKind {
 }
 
 impl SamplerKind {
+    /// The sampler's name, as `--sampler` takes it.
     pub fn name(&self) -> &'static str {
         match self {
             SamplerKind::Sobol => "sobol",
@@ -31,6 +32,7 @@ impl SamplerKind {
         }
     }
 
+    /// The sampler named `name` (as `name` returns it), or `None` for an unknown name.
     pub fn parse(name: &str) -> Option<SamplerKind> {
         match name {
             "sobol" => Some(SamplerKind::Sobol),
@@ -87,6 +89,8 @@ pub struct PathSampler {
 }
 
 impl PathSampler {
+    /// The sampler of sample `sample` of pixel `pixel` (row-major index in the image) in a
+    /// render seeded `seed` with `spp` samples per pixel.
     pub fn new(seed: u64, pixel: u64, sample: u32, spp: u32) -> PathSampler {
         PathSampler {
             rng: Pcg32::for_index(seed, pixel * spp as u64 + sample as u64),

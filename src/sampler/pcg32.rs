@@ -18,6 +18,7 @@ impl Pcg32 {
         rng
     }
 
+    /// The next 32 random bits.
     #[inline]
     pub fn next_u32(&mut self) -> u32 {
         let old = self.state;

@@ -13,6 +13,7 @@ use wide::{f32x4, f32x8};
 /// The arithmetic shared by f32 and the lane types: what the generic Möller-Trumbore core
 /// needs (so one function serves scalar and SIMD tests).
 pub trait Arith: Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> {
+    /// Absolute value (lane by lane for the SIMD types).
     fn abs(self) -> Self;
 }
 
@@ -29,19 +30,28 @@ pub trait SimdF32:
 {
     /// Lanes.
     const W: usize;
+    /// All lanes set to `x`.
     fn splat(x: f32) -> Self;
     /// The first `W` values of `s` (`s.len() >= W`).
     fn load(s: &[f32]) -> Self;
+    /// The value of lane `i` (`i < W`).
     fn lane(self, i: usize) -> f32;
+    /// Writes the lanes to the first `W` values of `out` (`out.len() >= W`).
     fn store(self, out: &mut [f32]);
+    /// The mask of lanes where `self == b`.
     fn simd_eq(self, b: Self) -> Self;
+    /// The mask of lanes where `self != b`.
     fn simd_ne(self, b: Self) -> Self;
+    /// The mask of lanes where `self < b`.
     fn simd_lt(self, b: Self) -> Self;
+    /// The mask of lanes where `self <= b`.
     fn simd_le(self, b: Self) -> Self;
+    /// The mask of lanes where `self >= b`.
     fn simd_ge(self, b: Self) -> Self;
     /// `minps` semantics (the second operand when either is NaN); the kernels never feed it
     /// NaN for finite input.
     fn fast_min(self, b: Self) -> Self;
+    /// `maxps` semantics (the second operand when either is NaN), as `fast_min`.
     fn fast_max(self, b: Self) -> Self;
     /// `self * a + b`, fused (one rounding) on the FMA targets the crate is built for
     /// (`.cargo/config.toml`), at every width alike, so that lanes of any width agree.
@@ -358,7 +368,9 @@ trait Columns8: Sized {
 /// APIs take the width as a const generic (`intersect_packet::<8>`), kernels the lane type.
 pub struct Lanes<const W: usize>;
 
+/// A packet width with a lane type (implemented by `Lanes<4>`, `Lanes<8>` and `Lanes<16>`).
 pub trait LaneWidth {
+    /// The lane type of this width.
     type F: SimdF32;
 }
 

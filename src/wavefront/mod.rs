@@ -68,17 +68,22 @@ fn sample_batch(ctx: &RenderContext) -> u32 {
 /// Rays traced, by kind, and the traversal work they caused.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct RenderStats {
+    /// Primary rays, one per path.
     pub camera_rays: u64,
+    /// Continuation rays queued by shading.
     pub bounce_rays: u64,
+    /// Shadow (any-hit) rays of direct lighting.
     pub shadow_rays: u64,
     /// Closest-hit direct-light rays of uniform hemisphere sampling.
     pub probe_rays: u64,
     /// Path vertices shaded in SIMD lanes (`integrator::diffuse`) rather than one by one.
     pub lane_vertices: u64,
+    /// The traversal work of all these rays.
     pub trace: TraceStats,
 }
 
 impl RenderStats {
+    /// Adds `o`'s counts to these.
     pub fn add(&mut self, o: &RenderStats) {
         self.camera_rays += o.camera_rays;
         self.bounce_rays += o.bounce_rays;
@@ -88,6 +93,7 @@ impl RenderStats {
         self.trace.add(&o.trace);
     }
 
+    /// Rays of all kinds.
     pub fn total_rays(&self) -> u64 {
         self.camera_rays + self.bounce_rays + self.shadow_rays + self.probe_rays
     }
@@ -96,13 +102,18 @@ impl RenderStats {
 /// A rectangle of pixels, row 0 at the top of the image.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Tile {
+    /// Column of the tile's left edge, in pixels.
     pub x0: u32,
+    /// Row of the tile's top edge, in pixels.
     pub y0: u32,
+    /// Width in pixels.
     pub width: u32,
+    /// Height in pixels.
     pub height: u32,
 }
 
 impl Tile {
+    /// Pixels in the tile.
     pub fn pixel_count(&self) -> usize {
         (self.width * self.height) as usize
     }
@@ -142,8 +153,11 @@ pub struct Workspace {
 pub struct PixelStats {
     /// Exact radiance sums: any split of the samples adds up to the same bytes.
     pub sum: Vec<ExactRgb>,
+    /// Sums of each sample's luminance.
     pub lum_sum: Vec<f64>,
+    /// Sums of each sample's squared luminance.
     pub lum_sq_sum: Vec<f64>,
+    /// Samples taken per pixel.
     pub count: Vec<u32>,
     /// Pixels that still take samples.
     pub active: Vec<bool>,
