@@ -5,9 +5,10 @@ use super::extend::{Coherence, PACKET};
 use crate::accel::TraceStats;
 use crate::math::Vec3;
 
-/// Shadow rays from camera-ray hits (`Coherence::Coherent`) start at neighbouring points and
-/// head for the same lights, so they go in packets; later ones one at a time. Both give the
-/// same answers, so the image does not depend on the choice.
+/// Shadow rays take the coherence of the queue whose hits made them (`Coherence::of_queue`):
+/// from a coherent queue they start at neighbouring points and head for the same lights, so
+/// they go in packets; otherwise one at a time. Both give the same answers, so the image does
+/// not depend on the choice.
 pub fn trace_shadow_rays(
     ctx: &RenderContext,
     shadow: &ShadowQueue,
