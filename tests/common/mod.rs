@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+pub mod bsdf;
 pub mod cli;
 
 /// The course scenes: `$PT_SCENES`, else `../shared/scenes/cs184` beside the repository.
