@@ -4,29 +4,32 @@
 //! (Choosing kernels at run time, so that one binary runs everywhere, is the traversal issue's
 //! work; until then this is the honest failure.)
 
-/// The x86-64 features a compiler target may enable and the CPU must then have, by the name
-/// `is_x86_feature_detected!` knows them.
-#[cfg(target_arch = "x86_64")]
-#[cfg_attr(not(target_os = "linux"), allow(dead_code))]
-const COMPILED: &[(&str, bool)] = &[
-    ("sse3", cfg!(target_feature = "sse3")),
-    ("ssse3", cfg!(target_feature = "ssse3")),
-    ("sse4.1", cfg!(target_feature = "sse4.1")),
-    ("sse4.2", cfg!(target_feature = "sse4.2")),
-    ("popcnt", cfg!(target_feature = "popcnt")),
-    ("avx", cfg!(target_feature = "avx")),
-    ("avx2", cfg!(target_feature = "avx2")),
-    ("fma", cfg!(target_feature = "fma")),
-    ("bmi1", cfg!(target_feature = "bmi1")),
-    ("bmi2", cfg!(target_feature = "bmi2")),
-    ("lzcnt", cfg!(target_feature = "lzcnt")),
-    ("f16c", cfg!(target_feature = "f16c")),
-    ("avx512f", cfg!(target_feature = "avx512f")),
-    ("avx512bw", cfg!(target_feature = "avx512bw")),
-    ("avx512cd", cfg!(target_feature = "avx512cd")),
-    ("avx512dq", cfg!(target_feature = "avx512dq")),
-    ("avx512vl", cfg!(target_feature = "avx512vl")),
-];
+/// From one list of feature names (as `is_x86_feature_detected!` knows them), the table of
+/// which ones this build enabled (`COMPILED`) and the CPU's answer for each (`cpu_has`).
+macro_rules! x86_features {
+    ($($name:tt),* $(,)?) => {
+        /// The x86-64 features a compiler target may enable and the CPU must then have, each
+        /// with whether this build enabled it.
+        #[cfg(target_arch = "x86_64")]
+        #[cfg_attr(not(target_os = "linux"), allow(dead_code))]
+        const COMPILED: &[(&str, bool)] = &[$(($name, cfg!(target_feature = $name))),*];
+
+        /// Whether this CPU has `feature` (a name from `COMPILED`).
+        #[cfg(target_arch = "x86_64")]
+        #[cfg_attr(not(target_os = "linux"), allow(dead_code))]
+        fn cpu_has(feature: &str) -> bool {
+            match feature {
+                $($name => is_x86_feature_detected!($name),)*
+                _ => false,
+            }
+        }
+    };
+}
+
+x86_features!(
+    "sse3", "ssse3", "sse4.1", "sse4.2", "popcnt", "avx", "avx2", "fma", "bmi1", "bmi2", "lzcnt",
+    "f16c", "avx512f", "avx512bw", "avx512cd", "avx512dq", "avx512vl",
+);
 
 /// Whether a CPU that has the features `has` says it has lacks one the binary was compiled for.
 /// A plain loop over a static table (no allocation): it runs before `main`.
@@ -35,32 +38,6 @@ const COMPILED: &[(&str, bool)] = &[
 #[inline(always)]
 fn lacks_compiled_features(has: impl Fn(&str) -> bool) -> bool {
     COMPILED.iter().any(|&(name, compiled)| compiled && !has(name))
-}
-
-/// Whether this CPU has `feature` (a name from `COMPILED`).
-#[cfg(target_arch = "x86_64")]
-#[cfg_attr(not(target_os = "linux"), allow(dead_code))]
-fn cpu_has(feature: &str) -> bool {
-    match feature {
-        "sse3" => is_x86_feature_detected!("sse3"),
-        "ssse3" => is_x86_feature_detected!("ssse3"),
-        "sse4.1" => is_x86_feature_detected!("sse4.1"),
-        "sse4.2" => is_x86_feature_detected!("sse4.2"),
-        "popcnt" => is_x86_feature_detected!("popcnt"),
-        "avx" => is_x86_feature_detected!("avx"),
-        "avx2" => is_x86_feature_detected!("avx2"),
-        "fma" => is_x86_feature_detected!("fma"),
-        "bmi1" => is_x86_feature_detected!("bmi1"),
-        "bmi2" => is_x86_feature_detected!("bmi2"),
-        "lzcnt" => is_x86_feature_detected!("lzcnt"),
-        "f16c" => is_x86_feature_detected!("f16c"),
-        "avx512f" => is_x86_feature_detected!("avx512f"),
-        "avx512bw" => is_x86_feature_detected!("avx512bw"),
-        "avx512cd" => is_x86_feature_detected!("avx512cd"),
-        "avx512dq" => is_x86_feature_detected!("avx512dq"),
-        "avx512vl" => is_x86_feature_detected!("avx512vl"),
-        _ => false,
-    }
 }
 
 /// Runs before `main` (an ELF constructor), so that no code compiled for the missing features

@@ -111,23 +111,23 @@ impl DiffuseLanes {
     /// (first the triangles' vertex indices, then their positions and normals), so that the
     /// cache misses of different lanes overlap instead of waiting on each other.
     fn load_surfaces(&mut self, scene: &Scene) {
-        let mut corners = [[0u32; 3]; LANES];
+        let mut vertices = [[0u32; 3]; LANES];
         self.spheres = 0;
-        for (l, c) in corners.iter_mut().enumerate() {
+        for (l, v) in vertices.iter_mut().enumerate() {
             if prim::is_sphere(self.prim[l]) {
                 self.spheres |= 1 << l;
             } else {
-                *c = scene.triangles[prim::triangle_index(self.prim[l]) as usize];
+                *v = scene.triangles[prim::triangle_index(self.prim[l]) as usize];
             }
         }
-        for (l, c) in corners.iter().enumerate() {
+        for (l, v) in vertices.iter().enumerate() {
             if self.spheres & (1 << l) != 0 {
                 let s = &scene.spheres[prim::sphere_index(self.prim[l]) as usize];
                 put(&mut self.corners[0], l, s.center);
                 self.u[l] = s.radius;
                 continue;
             }
-            for (k, &vertex) in c.iter().enumerate() {
+            for (k, &vertex) in v.iter().enumerate() {
                 put(&mut self.corners[k], l, scene.positions[vertex as usize]);
                 put(&mut self.normals[k], l, scene.normals[vertex as usize]);
             }
