@@ -275,6 +275,8 @@ pub struct TraceTotals {
     pub hits: u64,
     /// Sum of hit distances (0 for the shadow set), accumulated in f64 in ray order.
     pub t_sum: f64,
+    /// 64-bit FNV-1a over every ray's exact answer in trace order (`BenchRecord::answers`).
+    pub answers: u64,
     /// The exact work counters of the traversal.
     pub stats: TraceStats,
 }
@@ -335,7 +337,37 @@ impl TraceOutputs {
             t.hits += 1;
             t.t_sum += h.t as f64;
         }
+        let mut digest = Fnv1a::default();
+        for &b in &self.blocked {
+            digest.word(b as u32);
+        }
+        for h in &self.hits {
+            match h {
+                Some(h) => [1, h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.prim]
+                    .into_iter()
+                    .for_each(|w| digest.word(w)),
+                None => digest.word(0),
+            }
+        }
+        t.answers = digest.0;
         t
+    }
+}
+
+/// 64-bit FNV-1a, fed 32-bit words (little-endian bytes).
+struct Fnv1a(u64);
+
+impl Default for Fnv1a {
+    fn default() -> Fnv1a {
+        Fnv1a(0xcbf2_9ce4_8422_2325)
+    }
+}
+
+impl Fnv1a {
+    fn word(&mut self, w: u32) {
+        for b in w.to_le_bytes() {
+            self.0 = (self.0 ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
+        }
     }
 }
 
@@ -466,6 +498,8 @@ impl BenchResult {
             bytes_per_triangle: self.bytes_per_triangle,
             node_tests: self.totals.stats.node_tests,
             triangle_tests: self.totals.stats.triangle_tests,
+            answers: format!("{:016x}", self.totals.answers),
+            isa: crate::simd::isa::Isa::compiled().name().into(),
         }
     }
 }

@@ -528,9 +528,9 @@ fn every_command_has_a_help() {
     {
         assert!(help.contains(flag), "no '{flag}' in --help");
     }
-    let version = pathtracer(&["--version"]);
-    assert_eq!(
-        String::from_utf8_lossy(&version.stdout),
-        format!("pathtracer {}\n", env!("CARGO_PKG_VERSION"))
-    );
+    // The version, then the instruction set that runs (tests/isa.rs checks which).
+    let version = String::from_utf8_lossy(&pathtracer(&["--version"]).stdout).into_owned();
+    let lines: Vec<&str> = version.lines().collect();
+    assert_eq!(lines[0], format!("pathtracer {}", env!("CARGO_PKG_VERSION")), "{version}");
+    assert!(lines.len() == 2 && lines[1].starts_with("isa: "), "{version}");
 }

@@ -41,6 +41,15 @@ pub struct BenchRecord {
     /// Exact ray-triangle tests over the set; 0 when read from such an older line.
     #[serde(default)]
     pub triangle_tests: u64,
+    /// Checksum of every ray's exact answer in trace order (hit or miss, t, u, v and the
+    /// primitive; occluded or not for the shadow set): 64-bit FNV-1a, in hex. Builds for
+    /// different instruction sets must agree on it. Empty when read from an older line.
+    #[serde(default)]
+    pub answers: String,
+    /// The instruction-set level that ran (`sse2`, `avx2`, `avx512`); empty when read from a
+    /// line written before it was recorded.
+    #[serde(default)]
+    pub isa: String,
 }
 
 impl BenchRecord {
@@ -78,8 +87,9 @@ fn json_error(e: &serde_json::Error) -> String {
 
 /// Every way `run` is worse than `baseline`, one line each. Cost counters (node and triangle
 /// tests, exact totals) may fall freely and rise by at most `tolerance_pct` percent; the
-/// checksums (rays, hits, t_sum) may move by at most that either way. A baseline record the
-/// run did not produce is a regression too.
+/// checksums (rays, hits, t_sum) may move by at most that either way, and at tolerance 0 the
+/// answer digests (when both records have one) must be equal. A baseline record the run did
+/// not produce is a regression too.
 pub fn regressions(
     baseline: &[BenchRecord],
     run: &[BenchRecord],
@@ -121,6 +131,13 @@ pub fn regressions(
                 n.t_sum, b.t_sum
             ));
         }
+        let both_digested = !n.answers.is_empty() && !b.answers.is_empty();
+        if tolerance_pct == 0.0 && both_digested && n.answers != b.answers {
+            out.push(format!(
+                "{at}: answers {} vs baseline {} (some ray's hit, t, u, v or primitive differs)",
+                n.answers, b.answers
+            ));
+        }
     }
     out
 }
@@ -146,6 +163,8 @@ mod tests {
             bytes_per_triangle: 70.0,
             node_tests,
             triangle_tests: 300,
+            answers: "0123456789abcdef".into(),
+            isa: "avx2".into(),
         }
     }
 
@@ -172,6 +191,14 @@ mod tests {
         assert!(r[1].contains("traversal packet8: hits 51 vs baseline 50"), "{r:?}");
         assert!(r[2].contains("t_sum 12.7"), "{r:?}");
         assert!(regressions(&base, &worse, 2.0).is_empty());
+        let mut other = base.clone();
+        other[0].answers = "fedcba9876543210".into();
+        let r = regressions(&base, &other, 0.0);
+        assert_eq!(r.len(), 1, "{r:?}");
+        assert!(r[0].contains("answers fedcba9876543210 vs baseline 0123456789abcdef"), "{r:?}");
+        assert!(regressions(&base, &other, 1.0).is_empty());
+        other[0].answers.clear();
+        assert!(regressions(&base, &other, 0.0).is_empty());
         let r = regressions(&base, &base[..1], 0.0);
         assert_eq!(r, ["scene s.dae, ray set primary, traversal packet8: missing from this run"]);
     }

@@ -225,6 +225,8 @@ fn format_table(results: &[BenchResult]) -> String {
             r.bytes_per_triangle
         );
     }
+    let isa = pathtracer::simd::isa::Isa::compiled();
+    s += &format!("isa: {isa} (the {} build)\n", isa.target_cpu());
     s
 }
 

@@ -35,6 +35,7 @@ pub mod compare;
 pub mod converge;
 pub mod cpu;
 pub mod gen;
+pub mod launch;
 pub mod merge;
 pub mod render;
 pub mod render_args;

@@ -6,6 +6,8 @@
 //! Masks are float vectors whose lanes are all-ones or all-zeros bits, as `wide`'s comparisons
 //! return them.
 
+pub mod isa;
+
 use std::ops::{Add, BitAnd, BitOr, Div, Mul, Sub};
 
 use wide::{f32x4, f32x8};
@@ -53,8 +55,11 @@ pub trait SimdF32:
     fn fast_min(self, b: Self) -> Self;
     /// `maxps` semantics (the second operand when either is NaN), as `fast_min`.
     fn fast_max(self, b: Self) -> Self;
-    /// `self * a + b`, fused (one rounding) on the FMA targets the crate is built for
-    /// (`.cargo/config.toml`), at every width alike, so that lanes of any width agree.
+    /// `self * a + b`: fused (one rounding) in the builds with FMA (`isa::Isa::Avx2` and up),
+    /// a multiply and an add in the baseline build; at every width alike within a build, so
+    /// that lanes of any width agree. Only the box tests use it, and their margins
+    /// (`accel::packet::SLACK`, `BOX_INFLATE`) are wider than the second rounding, so hits do
+    /// not depend on the build (`tests/isa.rs`).
     fn mul_add(self, a: Self, b: Self) -> Self;
     /// `mask ? t : f` per lane.
     fn select(mask: Self, t: Self, f: Self) -> Self;

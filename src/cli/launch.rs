@@ -1,0 +1,178 @@
+//! Choosing the build to run, first thing in `main`: the highest instruction-set level this CPU
+//! runs (or the lower one `PT_ISA` asks for) whose build sits beside this binary.
+//!
+//! `cargo build --release` makes `pathtracer` for the x86-64 baseline, which starts on any
+//! x86-64 CPU; `.ci/build-isa-binaries` adds `pathtracer-avx2` (x86-64-v3) and
+//! `pathtracer-avx512` (x86-64-v4) in the same directory. Whichever of them the user starts,
+//! this replaces the process with the chosen build (`exec`, same arguments and environment),
+//! or carries on when the chosen build is this one. Levels whose build is missing fall back to
+//! the next lower one that is present; this build itself is the last resort.
+
+use std::ffi::OsString;
+use std::path::{Path, PathBuf};
+
+use pathtracer::simd::isa::Isa;
+use pathtracer::{Error, Result};
+
+/// The environment variable that caps the level (`avx512`, `avx2` or `sse`).
+pub const ISA_VAR: &str = "PT_ISA";
+
+/// The level to run: the CPU's best, or `PT_ISA`'s if it is set; asking for a level the CPU
+/// lacks is an error.
+pub fn wanted_level(var: Option<OsString>, cpu: Isa) -> Result<Isa> {
+    let Some(var) = var else { return Ok(cpu) };
+    let text = var.to_str().ok_or_else(|| Error::new(format!("{ISA_VAR} is not UTF-8")))?;
+    let wanted = Isa::parse(text).map_err(|e| Error::new(format!("{ISA_VAR}: {e}")))?;
+    if wanted > cpu {
+        return Err(Error::new(format!(
+            "{ISA_VAR}={text}: this CPU runs {cpu} at best (it lacks {})",
+            wanted.features().iter().find(|f| !pathtracer::simd::isa::cpu_has(f)).unwrap_or(&"?")
+        )));
+    }
+    Ok(wanted)
+}
+
+/// Where the build of `level` lives beside the binary at `exe` (`pathtracer-avx2` beside
+/// `pathtracer`, `pathtracer` beside `pathtracer-avx512`).
+pub fn sibling(exe: &Path, level: Isa) -> Option<PathBuf> {
+    let name = exe.file_name()?.to_str()?;
+    let base = Isa::ALL
+        .iter()
+        .filter(|l| !l.binary_suffix().is_empty())
+        .find_map(|l| name.strip_suffix(l.binary_suffix()))
+        .unwrap_or(name);
+    Some(exe.with_file_name(format!("{base}{}", level.binary_suffix())))
+}
+
+/// What to do at start-up: carry on in this build, or start another.
+#[derive(Debug, PartialEq, Eq)]
+pub enum Choice {
+    /// This build is the one to run.
+    Here,
+    /// Replace the process with the build at this path.
+    Exec(PathBuf),
+}
+
+/// The build to run for `wanted`: the highest level at or below it whose build exists
+/// (`exists`), this build (`compiled`) when that comes first. An error when every candidate is
+/// missing and this build is above `wanted`.
+pub fn choose(
+    exe: &Path,
+    compiled: Isa,
+    wanted: Isa,
+    exists: impl Fn(&Path) -> bool,
+) -> Result<Choice> {
+    for level in Isa::ALL.into_iter().rev().filter(|&l| l <= wanted) {
+        if level == compiled {
+            return Ok(Choice::Here);
+        }
+        if let Some(path) = sibling(exe, level).filter(|p| exists(p)) {
+            return Ok(Choice::Exec(path));
+        }
+    }
+    Err(Error::new(format!(
+        "{ISA_VAR} asks for {wanted}, but this is the {compiled} build and no build for \
+         {wanted} or below sits beside it"
+    )))
+}
+
+/// Runs the chosen build in place of this process, or returns to run here. Errors are one
+/// line (a bad `PT_ISA`, a build that cannot be started).
+pub fn run_chosen_build() -> Result<()> {
+    let wanted = wanted_level(std::env::var_os(ISA_VAR), Isa::cpu_best())?;
+    let compiled = Isa::compiled();
+    if wanted == compiled {
+        return Ok(());
+    }
+    let exe = std::env::current_exe()
+        .map_err(|e| Error::new(format!("finding this binary's path: {e}")))?;
+    match choose(&exe, compiled, wanted, |p| p.is_file())? {
+        Choice::Here => Ok(()),
+        Choice::Exec(path) => exec(&path),
+    }
+}
+
+#[cfg(unix)]
+fn exec(path: &Path) -> Result<()> {
+    use std::os::unix::process::CommandExt;
+    let mut args = std::env::args_os();
+    let mut cmd = std::process::Command::new(path);
+    if let Some(arg0) = args.next() {
+        cmd.arg0(arg0);
+    }
+    let e = cmd.args(args).exec();
+    Err(Error::new(format!("starting {}: {e}", path.display())))
+}
+
+#[cfg(not(unix))]
+fn exec(path: &Path) -> Result<()> {
+    let status = std::process::Command::new(path)
+        .args(std::env::args_os().skip(1))
+        .status()
+        .map_err(|e| Error::new(format!("starting {}: {e}", path.display())))?;
+    std::process::exit(status.code().unwrap_or(2));
+}
+
+/// The `--version` text: the package version, then the level that runs and the CPU's best.
+pub fn version_text() -> &'static str {
+    static TEXT: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    TEXT.get_or_init(|| {
+        let (isa, cpu) = (Isa::compiled(), Isa::cpu_best());
+        format!(
+            "{}\nisa: {isa} (built for {}; this CPU runs up to {cpu})",
+            env!("CARGO_PKG_VERSION"),
+            isa.target_cpu()
+        )
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pt_isa_caps_the_level_and_cannot_raise_it() {
+        assert_eq!(wanted_level(None, Isa::Avx2).unwrap(), Isa::Avx2);
+        assert_eq!(wanted_level(Some("sse".into()), Isa::Avx512).unwrap(), Isa::Baseline);
+        assert_eq!(wanted_level(Some("avx2".into()), Isa::Avx512).unwrap(), Isa::Avx2);
+        let e = wanted_level(Some("avx512".into()), Isa::Avx2).unwrap_err().to_string();
+        assert!(e.starts_with("PT_ISA=avx512: this CPU runs avx2 at best"), "{e}");
+        let e = wanted_level(Some("neon".into()), Isa::Avx2).unwrap_err().to_string();
+        assert!(e.contains("PT_ISA: unknown instruction set 'neon'"), "{e}");
+    }
+
+    #[test]
+    fn siblings_share_the_base_name() {
+        let p = Path::new("/x/pathtracer");
+        assert_eq!(sibling(p, Isa::Avx512).unwrap(), Path::new("/x/pathtracer-avx512"));
+        let p = Path::new("/x/pathtracer-avx512");
+        assert_eq!(sibling(p, Isa::Baseline).unwrap(), Path::new("/x/pathtracer"));
+        assert_eq!(sibling(p, Isa::Avx2).unwrap(), Path::new("/x/pathtracer-avx2"));
+    }
+
+    #[test]
+    fn the_highest_present_build_at_or_below_the_wanted_level_runs() {
+        let exe = Path::new("/x/pathtracer");
+        let only =
+            |names: &'static [&'static str]| move |p: &Path| names.iter().any(|n| p.ends_with(n));
+        let all = only(&["pathtracer", "pathtracer-avx2", "pathtracer-avx512"]);
+        let exec = |n: &str| Choice::Exec(PathBuf::from(format!("/x/{n}")));
+        assert_eq!(
+            choose(exe, Isa::Baseline, Isa::Avx512, all).unwrap(),
+            exec("pathtracer-avx512")
+        );
+        assert_eq!(choose(exe, Isa::Baseline, Isa::Avx2, all).unwrap(), exec("pathtracer-avx2"));
+        assert_eq!(choose(exe, Isa::Baseline, Isa::Baseline, all).unwrap(), Choice::Here);
+        // The avx512 build missing: the avx2 one; both missing: this one.
+        let v3 = only(&["pathtracer", "pathtracer-avx2"]);
+        assert_eq!(choose(exe, Isa::Baseline, Isa::Avx512, v3).unwrap(), exec("pathtracer-avx2"));
+        assert_eq!(choose(exe, Isa::Baseline, Isa::Avx512, only(&[])).unwrap(), Choice::Here);
+        // Started as the avx512 build and asked for less: the lower build, or an error.
+        let exe = Path::new("/x/pathtracer-avx512");
+        assert_eq!(choose(exe, Isa::Avx512, Isa::Avx2, all).unwrap(), exec("pathtracer-avx2"));
+        assert_eq!(choose(exe, Isa::Avx512, Isa::Avx2, v3).unwrap(), exec("pathtracer-avx2"));
+        assert_eq!(choose(exe, Isa::Avx512, Isa::Baseline, all).unwrap(), exec("pathtracer"));
+        let e = choose(exe, Isa::Avx512, Isa::Avx2, only(&[])).unwrap_err().to_string();
+        assert!(e.contains("no build for avx2 or below"), "{e}");
+    }
+}

@@ -1,0 +1,122 @@
+//! One binary for every x86-64 CPU: the plain build hands over to the best build beside it that
+//! the CPU runs, `PT_ISA` caps the level, and every level answers every ray of the standard ray
+//! sets identically (hit, t, u, v and primitive: `bench`'s answer digest, hits and t_sum).
+//!
+//! The `-avx2` and `-avx512` builds are made by `.ci/build-isa-binaries`; a level whose build
+//! is missing, or which this CPU lacks, is skipped with a note, unless `PT_REQUIRE_ISA_BUILDS`
+//! is set (as `.ci/run` does after building them), when a missing build fails.
+
+mod common;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use common::cli::assert_one_line_error;
+use pathtracer::bench::record::BenchRecord;
+use pathtracer::simd::isa::Isa;
+
+fn launcher() -> PathBuf {
+    PathBuf::from(env!("CARGO_BIN_EXE_pathtracer"))
+}
+
+fn build_of(level: Isa) -> PathBuf {
+    let exe = launcher();
+    let name = format!("pathtracer{}", level.binary_suffix());
+    exe.with_file_name(name)
+}
+
+/// The levels to check: this CPU runs them and their build exists (or must exist).
+fn levels() -> Vec<Isa> {
+    let require = std::env::var_os("PT_REQUIRE_ISA_BUILDS").is_some();
+    Isa::ALL
+        .into_iter()
+        .filter(|&l| {
+            if !l.runs_here() {
+                eprintln!("note: this CPU does not run {l}; not checked");
+                return false;
+            }
+            let present = build_of(l).is_file();
+            assert!(
+                present || !require,
+                "PT_REQUIRE_ISA_BUILDS: {} is missing",
+                build_of(l).display()
+            );
+            if !present {
+                eprintln!(
+                    "note: {} not built (.ci/build-isa-binaries); not checked",
+                    build_of(l).display()
+                );
+            }
+            present
+        })
+        .collect()
+}
+
+fn run_at(level: &str, args: &[&str]) -> Output {
+    Command::new(launcher()).env("PT_ISA", level).args(args).output().expect("run pathtracer")
+}
+
+fn stdout(out: &Output) -> String {
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(out.status.success(), "{text}\n{}", String::from_utf8_lossy(&out.stderr));
+    text
+}
+
+#[test]
+fn pt_isa_picks_the_build_that_runs() {
+    for level in levels() {
+        let text = stdout(&run_at(level.name(), &["--version"]));
+        let want = format!("isa: {level} (built for {};", level.target_cpu());
+        assert!(text.contains(&want), "PT_ISA={level}: {text}");
+    }
+    // Without PT_ISA: the best level that is both built and run by this CPU.
+    let best = levels().into_iter().max().unwrap_or(Isa::Baseline);
+    let out = Command::new(launcher()).env_remove("PT_ISA").arg("--version").output().unwrap();
+    assert!(stdout(&out).contains(&format!("isa: {best} ")), "{}", stdout(&out));
+}
+
+#[test]
+fn a_bad_pt_isa_is_one_line_and_exit_2() {
+    assert_one_line_error(&run_at("avx1024", &["--version"]), "PT_ISA: unknown instruction set");
+    if !Isa::Avx512.runs_here() {
+        assert_one_line_error(&run_at("avx512", &["--version"]), "this CPU runs");
+    }
+}
+
+/// The bench records of `scene` at `level`, keyed by (ray set, traversal).
+fn bench_at(level: Isa, scene: &Path) -> BTreeMap<(String, String), BenchRecord> {
+    let scene = scene.to_str().unwrap();
+    let out = run_at(level.name(), &["bench", scene, "--threads", "2", "--reps", "1", "--json"]);
+    let records = BenchRecord::parse_lines(&stdout(&out), scene).unwrap();
+    assert_eq!(records.len(), 12, "{scene}: three sets times four traversals");
+    records.into_iter().map(|r| ((r.ray_set.clone(), r.traversal.clone()), r)).collect()
+}
+
+#[test]
+fn every_level_answers_every_ray_identically() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut scenes = vec![root.join("assets/cornell.dae")];
+    scenes.extend(
+        ["sky/CBbunny.dae", "meshedit/maxplanck.dae"]
+            .iter()
+            .filter_map(|s| common::course_scene(s)),
+    );
+    let levels = levels();
+    for scene in &scenes {
+        let base = bench_at(Isa::Baseline, scene);
+        assert!(base.values().any(|r| r.hits > 0), "{}: nothing hit", scene.display());
+        for &level in levels.iter().filter(|&&l| l != Isa::Baseline) {
+            let other = bench_at(level, scene);
+            for (key, b) in &base {
+                let o = &other[key];
+                let at = format!("{} {key:?}: {level} against sse2", scene.display());
+                assert_eq!(b.isa, Isa::Baseline.name(), "{at}");
+                assert_eq!(o.isa, level.name(), "{at}");
+                assert_eq!(o.answers, b.answers, "{at}: answer digests");
+                assert_eq!(o.hits, b.hits, "{at}: hits");
+                assert_eq!(o.t_sum.to_bits(), b.t_sum.to_bits(), "{at}: t_sum");
+            }
+        }
+    }
+}
