@@ -206,43 +206,101 @@ macro_rules! impl_simd_f32 {
 impl_simd_f32!(f32x4, 4);
 impl_simd_f32!(f32x8, 8);
 
-/// Sixteen lanes as two `f32x8` halves: a 16-ray packet on AVX2, as Embree runs its 16-wide
-/// packets on 8-wide hardware. Every operation is the 8-wide one on each half, so each lane
-/// computes bit for bit what it computes in an 8-wide packet.
-#[derive(Clone, Copy, Debug)]
-pub struct F32x16 {
-    lo: f32x8,
-    hi: f32x8,
-}
+/// Sixteen lanes: one 512-bit register in builds with AVX-512 (`wide::f32x16`), two `f32x8`
+/// halves below that (`halves::F32x16`), as Embree runs its 16-wide packets on 8-wide
+/// hardware. Every operation is lane by lane the 8-wide one, so each lane computes bit for
+/// bit what it computes in an 8-wide packet, in either form.
+#[cfg(not(target_feature = "avx512f"))]
+pub use halves::F32x16;
+#[cfg(target_feature = "avx512f")]
+pub use wide::f32x16 as F32x16;
 
-macro_rules! halves_binop {
-    ($trait:ident, $f:ident) => {
-        impl $trait for F32x16 {
-            type Output = F32x16;
-            #[inline(always)]
-            fn $f(self, b: F32x16) -> F32x16 {
-                F32x16 { lo: self.lo.$f(b.lo), hi: self.hi.$f(b.hi) }
-            }
-        }
-    };
-}
-halves_binop!(Add, add);
-halves_binop!(Sub, sub);
-halves_binop!(Mul, mul);
-halves_binop!(Div, div);
-halves_binop!(BitAnd, bitand);
-halves_binop!(BitOr, bitor);
+#[cfg(target_feature = "avx512f")]
+impl_simd_f32!(F32x16, 16);
 
-impl F32x16 {
-    /// Applies the 8-wide `f` to both halves.
+#[cfg(target_feature = "avx512f")]
+impl Columns8 for F32x16 {
     #[inline(always)]
-    fn zip(self, b: F32x16, f: impl Fn(f32x8, f32x8) -> f32x8) -> F32x16 {
-        F32x16 { lo: f(self.lo, b.lo), hi: f(self.hi, b.hi) }
+    fn columns8_impl(n: usize, row: impl Fn(usize) -> [f32; 8]) -> [F32x16; 8] {
+        let lo = f32x8::columns8(n.min(8), &row);
+        let hi = f32x8::columns8(n.saturating_sub(8), |i| row(i + 8));
+        std::array::from_fn(|k| join16(lo[k], hi[k]))
+    }
+
+    #[inline(always)]
+    fn fold_rows(rows: [F32x16; 8], f: impl Fn(F32x16, F32x16) -> F32x16) -> [f32; 8] {
+        // Fold the two 8-lane halves of each row into one 16-lane vector's halves first.
+        let folded = rows.map(|r| {
+            let (lo, hi) = split16(r);
+            let (lo, hi) = (join16(lo, lo), join16(hi, hi));
+            split16(f(lo, hi)).0
+        });
+        let c = f32x8::transpose(folded);
+        let g = |a: f32x8, b: f32x8| split16(f(join16(a, a), join16(b, b))).0;
+        g(g(g(c[0], c[1]), g(c[2], c[3])), g(g(c[4], c[5]), g(c[6], c[7]))).to_array()
     }
 }
 
-/// Two-operand `SimdF32` methods of `F32x16` as the `f32x8` method on each half.
-macro_rules! lanewise {
+/// One 16-lane vector from two 8-lane halves (lanes 0-7, then 8-15).
+#[cfg(target_feature = "avx512f")]
+#[inline(always)]
+fn join16(lo: f32x8, hi: f32x8) -> F32x16 {
+    let (lo, hi) = (lo.to_array(), hi.to_array());
+    F32x16::new(std::array::from_fn(|i| if i < 8 { lo[i] } else { hi[i - 8] }))
+}
+
+/// The two 8-lane halves of a 16-lane vector.
+#[cfg(target_feature = "avx512f")]
+#[inline(always)]
+fn split16(v: F32x16) -> (f32x8, f32x8) {
+    let a = v.to_array();
+    (f32x8::new(std::array::from_fn(|i| a[i])), f32x8::new(std::array::from_fn(|i| a[i + 8])))
+}
+
+/// Sixteen lanes as two `f32x8` halves, for builds without AVX-512.
+#[cfg(not(target_feature = "avx512f"))]
+mod halves {
+    use std::ops::{Add, BitAnd, BitOr, Div, Mul, Sub};
+
+    use wide::f32x8;
+
+    use super::{Arith, SimdF32};
+
+    /// Sixteen lanes as two `f32x8` halves (see `simd::F32x16`).
+    #[derive(Clone, Copy, Debug)]
+    pub struct F32x16 {
+        lo: f32x8,
+        hi: f32x8,
+    }
+
+    macro_rules! halves_binop {
+        ($trait:ident, $f:ident) => {
+            impl $trait for F32x16 {
+                type Output = F32x16;
+                #[inline(always)]
+                fn $f(self, b: F32x16) -> F32x16 {
+                    F32x16 { lo: self.lo.$f(b.lo), hi: self.hi.$f(b.hi) }
+                }
+            }
+        };
+    }
+    halves_binop!(Add, add);
+    halves_binop!(Sub, sub);
+    halves_binop!(Mul, mul);
+    halves_binop!(Div, div);
+    halves_binop!(BitAnd, bitand);
+    halves_binop!(BitOr, bitor);
+
+    impl F32x16 {
+        /// Applies the 8-wide `f` to both halves.
+        #[inline(always)]
+        fn zip(self, b: F32x16, f: impl Fn(f32x8, f32x8) -> f32x8) -> F32x16 {
+            F32x16 { lo: f(self.lo, b.lo), hi: f(self.hi, b.hi) }
+        }
+    }
+
+    /// Two-operand `SimdF32` methods of `F32x16` as the `f32x8` method on each half.
+    macro_rules! lanewise {
     ($($f:ident),*) => {
         $(
             #[inline(always)]
@@ -253,70 +311,71 @@ macro_rules! lanewise {
     };
 }
 
-impl Arith for F32x16 {
-    #[inline(always)]
-    fn abs(self) -> Self {
-        F32x16 { lo: self.lo.abs(), hi: self.hi.abs() }
-    }
-}
-
-impl SimdF32 for F32x16 {
-    const W: usize = 16;
-    #[inline(always)]
-    fn splat(x: f32) -> Self {
-        F32x16 { lo: f32x8::splat(x), hi: f32x8::splat(x) }
-    }
-    #[inline(always)]
-    fn load(s: &[f32]) -> Self {
-        F32x16 { lo: f32x8::load(s), hi: f32x8::load(&s[8..]) }
-    }
-    #[inline(always)]
-    fn lane(self, i: usize) -> f32 {
-        if i < 8 {
-            self.lo.as_array()[i]
-        } else {
-            self.hi.as_array()[i - 8]
+    impl Arith for F32x16 {
+        #[inline(always)]
+        fn abs(self) -> Self {
+            F32x16 { lo: self.lo.abs(), hi: self.hi.abs() }
         }
     }
-    #[inline(always)]
-    fn store(self, out: &mut [f32]) {
-        self.lo.store(out);
-        self.hi.store(&mut out[8..]);
-    }
-    lanewise!(simd_eq, simd_ne, simd_lt, simd_le, simd_ge, fast_min, fast_max);
-    #[inline(always)]
-    fn mul_add(self, a: Self, b: Self) -> Self {
-        F32x16 { lo: self.lo.mul_add(a.lo, b.lo), hi: self.hi.mul_add(a.hi, b.hi) }
-    }
-    #[inline(always)]
-    fn select(mask: Self, t: Self, f: Self) -> Self {
-        F32x16 { lo: mask.lo.select(t.lo, f.lo), hi: mask.hi.select(t.hi, f.hi) }
-    }
-    #[inline(always)]
-    fn sqrt(self) -> Self {
-        F32x16 { lo: self.lo.sqrt(), hi: self.hi.sqrt() }
-    }
-    #[inline(always)]
-    fn bitmask(self) -> u32 {
-        self.lo.bitmask() | self.hi.bitmask() << 8
-    }
-    #[inline(always)]
-    fn from_bitmask(bits: u32) -> Self {
-        F32x16 { lo: f32x8::from_bitmask(bits & 0xff), hi: f32x8::from_bitmask(bits >> 8) }
-    }
-    #[inline(always)]
-    fn columns8(n: usize, row: impl Fn(usize) -> [f32; 8]) -> [Self; 8] {
-        let lo = f32x8::columns8(n.min(8), &row);
-        let hi = f32x8::columns8(n.saturating_sub(8), |i| row(i + 8));
-        std::array::from_fn(|k| F32x16 { lo: lo[k], hi: hi[k] })
-    }
-    #[inline(always)]
-    fn min_of_rows(rows: [Self; 8]) -> [f32; 8] {
-        f32x8::min_of_rows(rows.map(|r| r.lo.fast_min(r.hi)))
-    }
-    #[inline(always)]
-    fn max_of_rows(rows: [Self; 8]) -> [f32; 8] {
-        f32x8::max_of_rows(rows.map(|r| r.lo.fast_max(r.hi)))
+
+    impl SimdF32 for F32x16 {
+        const W: usize = 16;
+        #[inline(always)]
+        fn splat(x: f32) -> Self {
+            F32x16 { lo: f32x8::splat(x), hi: f32x8::splat(x) }
+        }
+        #[inline(always)]
+        fn load(s: &[f32]) -> Self {
+            F32x16 { lo: f32x8::load(s), hi: f32x8::load(&s[8..]) }
+        }
+        #[inline(always)]
+        fn lane(self, i: usize) -> f32 {
+            if i < 8 {
+                self.lo.as_array()[i]
+            } else {
+                self.hi.as_array()[i - 8]
+            }
+        }
+        #[inline(always)]
+        fn store(self, out: &mut [f32]) {
+            self.lo.store(out);
+            self.hi.store(&mut out[8..]);
+        }
+        lanewise!(simd_eq, simd_ne, simd_lt, simd_le, simd_ge, fast_min, fast_max);
+        #[inline(always)]
+        fn mul_add(self, a: Self, b: Self) -> Self {
+            F32x16 { lo: self.lo.mul_add(a.lo, b.lo), hi: self.hi.mul_add(a.hi, b.hi) }
+        }
+        #[inline(always)]
+        fn select(mask: Self, t: Self, f: Self) -> Self {
+            F32x16 { lo: mask.lo.select(t.lo, f.lo), hi: mask.hi.select(t.hi, f.hi) }
+        }
+        #[inline(always)]
+        fn sqrt(self) -> Self {
+            F32x16 { lo: self.lo.sqrt(), hi: self.hi.sqrt() }
+        }
+        #[inline(always)]
+        fn bitmask(self) -> u32 {
+            self.lo.bitmask() | self.hi.bitmask() << 8
+        }
+        #[inline(always)]
+        fn from_bitmask(bits: u32) -> Self {
+            F32x16 { lo: f32x8::from_bitmask(bits & 0xff), hi: f32x8::from_bitmask(bits >> 8) }
+        }
+        #[inline(always)]
+        fn columns8(n: usize, row: impl Fn(usize) -> [f32; 8]) -> [Self; 8] {
+            let lo = f32x8::columns8(n.min(8), &row);
+            let hi = f32x8::columns8(n.saturating_sub(8), |i| row(i + 8));
+            std::array::from_fn(|k| F32x16 { lo: lo[k], hi: hi[k] })
+        }
+        #[inline(always)]
+        fn min_of_rows(rows: [Self; 8]) -> [f32; 8] {
+            f32x8::min_of_rows(rows.map(|r| r.lo.fast_min(r.hi)))
+        }
+        #[inline(always)]
+        fn max_of_rows(rows: [Self; 8]) -> [f32; 8] {
+            f32x8::max_of_rows(rows.map(|r| r.lo.fast_max(r.hi)))
+        }
     }
 }
 
