@@ -43,8 +43,10 @@ impl Coherence {
     }
 }
 
-/// Packet width for coherent queues.
-pub const PACKET: usize = 8;
+/// Packet width for coherent queues: 16 rays where one register holds them (the avx512
+/// build), 8 below it, where 16-ray packets are two halves and did not pay in renders
+/// (PERF.md, "One binary for every x86-64 CPU").
+pub const PACKET: usize = if cfg!(target_feature = "avx512f") { 16 } else { 8 };
 
 /// Finds the closest hit of each queued ray; `hits[i]` answers `rays.rays[i]`.
 pub fn extend(
