@@ -26,6 +26,16 @@ fn build_of(level: Isa) -> PathBuf {
     exe.with_file_name(name)
 }
 
+/// Whether the build at `path` exists and is not older than the baseline build (the launcher
+/// passes over older ones: `src/cli/launch.rs`).
+fn fresh(path: &Path) -> bool {
+    let modified = |p: &Path| std::fs::metadata(p).and_then(|m| m.modified()).ok();
+    match (modified(path), modified(&launcher())) {
+        (Some(build), Some(base)) => build >= base,
+        _ => false,
+    }
+}
+
 /// The levels to check: this CPU runs them and their build exists (or must exist).
 fn levels() -> Vec<Isa> {
     let require = std::env::var_os("PT_REQUIRE_ISA_BUILDS").is_some();
@@ -36,15 +46,16 @@ fn levels() -> Vec<Isa> {
                 eprintln!("note: this CPU does not run {l}; not checked");
                 return false;
             }
-            let present = build_of(l).is_file();
+            let present = fresh(&build_of(l));
             assert!(
                 present || !require,
-                "PT_REQUIRE_ISA_BUILDS: {} is missing",
+                "PT_REQUIRE_ISA_BUILDS: {} is missing or older than the baseline build",
                 build_of(l).display()
             );
             if !present {
                 eprintln!(
-                    "note: {} not built (.ci/build-isa-binaries); not checked",
+                    "note: {} not built, or older than the baseline (.ci/build-isa-binaries); \
+                     not checked",
                     build_of(l).display()
                 );
             }

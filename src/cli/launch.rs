@@ -44,6 +44,31 @@ pub fn sibling(exe: &Path, level: Isa) -> Option<PathBuf> {
     Some(exe.with_file_name(format!("{base}{}", level.binary_suffix())))
 }
 
+/// Whether the build at `path` may run in place of `exe`: it exists and is not older than the
+/// baseline build beside it (`pathtracer`, or `exe` itself where that is missing).
+/// `.ci/build-isa-binaries` builds the baseline first, so a baseline rebuilt later by a plain
+/// `cargo build` makes the other builds stale, and they are passed over rather than run with
+/// older code (`--version` says so).
+pub fn usable(exe: &Path, path: &Path) -> bool {
+    let modified = |p: &Path| std::fs::metadata(p).and_then(|m| m.modified()).ok();
+    let baseline = sibling(exe, Isa::Baseline).filter(|b| b.is_file());
+    match (modified(path), baseline.as_deref().or(Some(exe)).and_then(modified)) {
+        (Some(build), Some(reference)) => build >= reference,
+        (Some(_), None) => true,
+        (None, _) => false,
+    }
+}
+
+/// Builds beside `exe` that exist but are older than its baseline build (`usable`).
+fn stale_builds(exe: &Path) -> Vec<PathBuf> {
+    Isa::ALL
+        .into_iter()
+        .filter(|&l| l != Isa::Baseline)
+        .filter_map(|l| sibling(exe, l))
+        .filter(|p| p.is_file() && !usable(exe, p))
+        .collect()
+}
+
 /// What to do at start-up: carry on in this build, or start another.
 #[derive(Debug, PartialEq, Eq)]
 pub enum Choice {
@@ -86,7 +111,7 @@ pub fn run_chosen_build() -> Result<()> {
     }
     let exe = std::env::current_exe()
         .map_err(|e| Error::new(format!("finding this binary's path: {e}")))?;
-    match choose(&exe, compiled, wanted, |p| p.is_file())? {
+    match choose(&exe, compiled, wanted, |p| usable(&exe, p))? {
         Choice::Here => Ok(()),
         Choice::Exec(path) => exec(&path),
     }
@@ -118,8 +143,23 @@ pub fn version_text() -> &'static str {
     static TEXT: std::sync::OnceLock<String> = std::sync::OnceLock::new();
     TEXT.get_or_init(|| {
         let (isa, cpu) = (Isa::compiled(), Isa::cpu_best());
+        let stale: Vec<String> = std::env::current_exe()
+            .map(|exe| stale_builds(&exe))
+            .unwrap_or_default()
+            .iter()
+            .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+            .collect();
+        let note = if stale.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "; not run: {}, older than the baseline build (rebuild with \
+                 .ci/build-isa-binaries)",
+                stale.join(", ")
+            )
+        };
         format!(
-            "{}\nisa: {isa} (built for {}; this CPU runs up to {cpu})",
+            "{}\nisa: {isa} (built for {}; this CPU runs up to {cpu}{note})",
             env!("CARGO_PKG_VERSION"),
             isa.target_cpu()
         )
@@ -148,6 +188,28 @@ mod tests {
         let p = Path::new("/x/pathtracer-avx512");
         assert_eq!(sibling(p, Isa::Baseline).unwrap(), Path::new("/x/pathtracer"));
         assert_eq!(sibling(p, Isa::Avx2).unwrap(), Path::new("/x/pathtracer-avx2"));
+    }
+
+    #[test]
+    fn builds_older_than_the_baseline_are_not_used() {
+        let dir = std::env::temp_dir().join(format!("pt-launch-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (base, fast) = (dir.join("pathtracer"), dir.join("pathtracer-avx512"));
+        let at = |p: &Path, secs: u64| {
+            let f = std::fs::File::create(p).unwrap();
+            f.set_modified(std::time::UNIX_EPOCH + std::time::Duration::from_secs(secs)).unwrap();
+        };
+        at(&base, 1000);
+        at(&fast, 2000);
+        assert!(usable(&base, &fast) && usable(&fast, &base));
+        assert!(stale_builds(&base).is_empty());
+        at(&base, 3000); // the baseline rebuilt after the others
+        assert!(!usable(&base, &fast) && !usable(&fast, &fast));
+        assert_eq!(stale_builds(&base), std::slice::from_ref(&fast));
+        assert!(!usable(&base, &dir.join("pathtracer-avx2")), "a missing build");
+        std::fs::remove_file(&base).unwrap(); // no baseline: the build itself is the reference
+        assert!(usable(&fast, &fast));
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

@@ -3,6 +3,7 @@
 
 mod accuracy;
 mod peer;
+mod peer_csv;
 mod scaling;
 
 use clap::Subcommand;
