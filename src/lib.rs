@@ -66,7 +66,7 @@
 //! error        the error enum and `bail!`
 //! staged       a command's output files, written all or none (temporaries, signals)
 //! math         Vec3, Aabb, Ray, Hit (scalar)
-//! simd         lane types and helpers
+//! simd         lane types and helpers; `simd::isa`: the instruction-set level of this build
 //! sampler      PCG32, Sobol, the per-path random numbers
 //! scene        the scene model, COLLADA loader, camera (no limits of accel)
 //! procedural   generated scenes (COLLADA text)

@@ -5,7 +5,7 @@ use crate::accel::TraceStats;
 use crate::math::Hit;
 
 /// How a queue's rays are traced. Camera rays of a tile (and their shadow rays) are coherent:
-/// neighbouring queue entries are samples of the same or adjacent pixels, so 8-wide packets
+/// neighbouring queue entries are samples of the same or adjacent pixels, so packets (`PACKET` rays)
 /// share most nodes. Bounces keep the queue order of their pixels, so while most paths of the
 /// tile are alive, neighbouring entries still start from nearby points and packets win on a
 /// cache-resident structure; once most have left the scene, neighbours come from pixels far
