@@ -159,3 +159,68 @@ fn every_level_renders_the_same_bytes() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `qemu-x86_64` (Debian's qemu-user), if installed; a failure when `PT_REQUIRE_QEMU` is set
+/// (as `.ci/run` does after installing it).
+fn qemu() -> Option<PathBuf> {
+    let found = std::env::var_os("PATH").and_then(|paths| {
+        std::env::split_paths(&paths).map(|d| d.join("qemu-x86_64")).find(|p| p.is_file())
+    });
+    if found.is_none() {
+        assert!(std::env::var_os("PT_REQUIRE_QEMU").is_none(), "PT_REQUIRE_QEMU: no qemu-x86_64");
+        eprintln!(
+            "note: qemu-x86_64 not found (apt-get install qemu-user); older CPUs not checked"
+        );
+    }
+    found
+}
+
+/// Runs `build` under qemu's model of an older CPU (`Nehalem`: SSE4.2, no AVX; `Haswell`:
+/// AVX2 and FMA, no AVX-512), with `PT_ISA` unset.
+fn on_cpu(qemu: &Path, cpu: &str, build: &Path, args: &[&str]) -> Output {
+    Command::new(qemu)
+        .args(["-cpu", cpu])
+        .arg(build)
+        .args(args)
+        .env_remove("PT_ISA")
+        .output()
+        .expect("run qemu-x86_64")
+}
+
+/// On CPUs without AVX2 or AVX-512 the plain binary runs the build they can run (and renders),
+/// and a faster build started by hand refuses with one line instead of dying on SIGILL.
+#[test]
+fn older_cpus_get_the_build_they_run() {
+    let Some(qemu) = qemu() else { return };
+    let base = launcher();
+    let version = |cpu: &str| stdout(&on_cpu(&qemu, cpu, &base, &["--version"]));
+    assert!(version("Nehalem").contains("isa: sse2 (built for x86-64; this CPU runs up to sse2"));
+    let dir = std::env::temp_dir().join(format!("pt-isa-qemu-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let png = dir.join("cornell.png");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/cornell.dae");
+    let args = ["-r", "16", "12", "-s", "2", "-m", "2", "--quiet", "-f"];
+    let mut args: Vec<&str> = args.to_vec();
+    args.extend([png.to_str().unwrap(), scene.to_str().unwrap()]);
+    stdout(&on_cpu(&qemu, "Nehalem", &base, &args));
+    assert!(std::fs::metadata(&png).unwrap().len() > 0);
+    let _ = std::fs::remove_dir_all(&dir);
+    let refused = |cpu: &str, level: Isa| {
+        let out = on_cpu(&qemu, cpu, &build_of(level), &["--version"]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        let lines: Vec<&str> = stderr.lines().filter(|l| !l.starts_with("qemu-x86_64:")).collect();
+        assert_eq!(out.status.code(), Some(2), "{level} on {cpu}: {stderr}");
+        assert_eq!(lines.len(), 1, "{level} on {cpu}: {stderr}");
+        assert!(lines[0].starts_with("error: this CPU lacks instructions this build"), "{stderr}");
+    };
+    let fast: Vec<Isa> = levels().into_iter().filter(|&l| l != Isa::Baseline).collect();
+    if fast.contains(&Isa::Avx2) {
+        // The exec'd build runs natively on this machine, told the level by PT_ISA.
+        assert!(version("Haswell").contains("isa: avx2 (built for x86-64-v3;"));
+        refused("Nehalem", Isa::Avx2);
+    }
+    if fast.contains(&Isa::Avx512) {
+        refused("Nehalem", Isa::Avx512);
+        refused("Haswell", Isa::Avx512);
+    }
+}

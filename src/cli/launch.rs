@@ -74,8 +74,8 @@ fn stale_builds(exe: &Path) -> Vec<PathBuf> {
 pub enum Choice {
     /// This build is the one to run.
     Here,
-    /// Replace the process with the build at this path.
-    Exec(PathBuf),
+    /// Replace the process with the build at this path, of this level.
+    Exec(PathBuf, Isa),
 }
 
 /// The build to run for `wanted`: the highest level at or below it whose build exists
@@ -92,7 +92,7 @@ pub fn choose(
             return Ok(Choice::Here);
         }
         if let Some(path) = sibling(exe, level).filter(|p| exists(p)) {
-            return Ok(Choice::Exec(path));
+            return Ok(Choice::Exec(path, level));
         }
     }
     Err(Error::new(format!(
@@ -113,15 +113,18 @@ pub fn run_chosen_build() -> Result<()> {
         .map_err(|e| Error::new(format!("finding this binary's path: {e}")))?;
     match choose(&exe, compiled, wanted, |p| usable(&exe, p))? {
         Choice::Here => Ok(()),
-        Choice::Exec(path) => exec(&path),
+        Choice::Exec(path, level) => exec(&path, level),
     }
 }
 
+/// Starts the build at `path` with this process's arguments, telling it the level chosen
+/// (`PT_ISA`), so that it runs rather than choosing again.
 #[cfg(unix)]
-fn exec(path: &Path) -> Result<()> {
+fn exec(path: &Path, level: Isa) -> Result<()> {
     use std::os::unix::process::CommandExt;
     let mut args = std::env::args_os();
     let mut cmd = std::process::Command::new(path);
+    cmd.env(ISA_VAR, level.name());
     if let Some(arg0) = args.next() {
         cmd.arg0(arg0);
     }
@@ -130,8 +133,9 @@ fn exec(path: &Path) -> Result<()> {
 }
 
 #[cfg(not(unix))]
-fn exec(path: &Path) -> Result<()> {
+fn exec(path: &Path, level: Isa) -> Result<()> {
     let status = std::process::Command::new(path)
+        .env(ISA_VAR, level.name())
         .args(std::env::args_os().skip(1))
         .status()
         .map_err(|e| Error::new(format!("starting {}: {e}", path.display())))?;
@@ -218,7 +222,10 @@ mod tests {
         let only =
             |names: &'static [&'static str]| move |p: &Path| names.iter().any(|n| p.ends_with(n));
         let all = only(&["pathtracer", "pathtracer-avx2", "pathtracer-avx512"]);
-        let exec = |n: &str| Choice::Exec(PathBuf::from(format!("/x/{n}")));
+        let exec = |n: &str| {
+            let level = Isa::ALL.into_iter().rev().find(|l| n.ends_with(l.binary_suffix()));
+            Choice::Exec(PathBuf::from(format!("/x/{n}")), level.unwrap())
+        };
         assert_eq!(
             choose(exe, Isa::Baseline, Isa::Avx512, all).unwrap(),
             exec("pathtracer-avx512")

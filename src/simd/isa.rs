@@ -115,35 +115,123 @@ impl fmt::Display for Isa {
     }
 }
 
-/// From one list of feature names, the table of which ones this build enabled and the CPU's
-/// answer for each (`cpu_has`); on other architectures no feature is compiled or present.
-macro_rules! x86_features {
-    ($($name:tt),* $(,)?) => {
-        /// Every feature a level may use, each with whether this build enabled it.
-        pub const COMPILED_FEATURES: &[(&str, bool)] = &[$(($name, cfg!(target_feature = $name))),*];
+/// Every feature a level may use, each with whether this build enabled it.
+pub const COMPILED_FEATURES: &[(&str, bool)] = &[
+    ("sse3", cfg!(target_feature = "sse3")),
+    ("ssse3", cfg!(target_feature = "ssse3")),
+    ("sse4.1", cfg!(target_feature = "sse4.1")),
+    ("sse4.2", cfg!(target_feature = "sse4.2")),
+    ("popcnt", cfg!(target_feature = "popcnt")),
+    ("avx", cfg!(target_feature = "avx")),
+    ("avx2", cfg!(target_feature = "avx2")),
+    ("fma", cfg!(target_feature = "fma")),
+    ("bmi1", cfg!(target_feature = "bmi1")),
+    ("bmi2", cfg!(target_feature = "bmi2")),
+    ("lzcnt", cfg!(target_feature = "lzcnt")),
+    ("movbe", cfg!(target_feature = "movbe")),
+    ("f16c", cfg!(target_feature = "f16c")),
+    ("avx512f", cfg!(target_feature = "avx512f")),
+    ("avx512bw", cfg!(target_feature = "avx512bw")),
+    ("avx512cd", cfg!(target_feature = "avx512cd")),
+    ("avx512dq", cfg!(target_feature = "avx512dq")),
+    ("avx512vl", cfg!(target_feature = "avx512vl")),
+];
 
-        /// Whether this CPU has `feature` (a name from `COMPILED_FEATURES`).
-        pub fn cpu_has(feature: &str) -> bool {
-            #[cfg(target_arch = "x86_64")]
-            {
-                match feature {
-                    $($name => is_x86_feature_detected!($name),)*
-                    _ => false,
-                }
-            }
-            #[cfg(not(target_arch = "x86_64"))]
-            {
-                let _ = feature;
-                false
-            }
-        }
-    };
+/// Whether this CPU (and its operating system, for the AVX and AVX-512 register state) has
+/// `feature`, a name from `COMPILED_FEATURES`; unknown names and other architectures: false.
+///
+/// Read from CPUID and XCR0 directly rather than by `is_x86_feature_detected!`, which answers
+/// `true` without asking the CPU for every feature the build enables: in the avx2 build it
+/// would claim AVX2 on any CPU, and the start-up check (`src/cli/cpu.rs`) would wave through
+/// the very CPUs it must refuse. Runs before `main` there: no allocation, no AVX.
+pub fn cpu_has(feature: &str) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        x86::has(&x86::Cpuid::read(), feature)
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let _ = feature;
+        false
+    }
 }
 
-x86_features!(
-    "sse3", "ssse3", "sse4.1", "sse4.2", "popcnt", "avx", "avx2", "fma", "bmi1", "bmi2", "lzcnt",
-    "movbe", "f16c", "avx512f", "avx512bw", "avx512cd", "avx512dq", "avx512vl",
-);
+#[cfg(target_arch = "x86_64")]
+mod x86 {
+    use std::arch::x86_64::{__cpuid, __cpuid_count, CpuidResult};
+
+    /// The CPUID leaves the features come from, and XCR0.
+    pub struct Cpuid {
+        leaf1: CpuidResult,
+        leaf7: CpuidResult,
+        ext1: CpuidResult,
+        xcr0: u64,
+    }
+
+    const NONE: CpuidResult = CpuidResult { eax: 0, ebx: 0, ecx: 0, edx: 0 };
+
+    impl Cpuid {
+        pub fn read() -> Cpuid {
+            #[allow(unused_unsafe)]
+            // SAFETY: CPUID exists on every x86-64 CPU; leaves above the maximum the CPU
+            // reports are not read.
+            let (max, ext_max) = unsafe { (__cpuid(0).eax, __cpuid(0x8000_0000).eax) };
+            #[allow(unused_unsafe)]
+            // SAFETY: as above.
+            let (leaf1, leaf7, ext1) = unsafe {
+                (
+                    __cpuid(1),
+                    if max >= 7 { __cpuid_count(7, 0) } else { NONE },
+                    if ext_max >= 0x8000_0001 { __cpuid(0x8000_0001) } else { NONE },
+                )
+            };
+            let osxsave = leaf1.ecx >> 27 & 1 == 1;
+            Cpuid { leaf1, leaf7, ext1, xcr0: if osxsave { xcr0() } else { 0 } }
+        }
+    }
+
+    /// XCR0: which register states the operating system saves.
+    fn xcr0() -> u64 {
+        let (lo, hi): (u32, u32);
+        // SAFETY: called only when CPUID reports OSXSAVE, so XGETBV exists and XCR0 (ecx = 0)
+        // is readable; it touches no memory.
+        unsafe {
+            std::arch::asm!("xgetbv", in("ecx") 0, out("eax") lo, out("edx") hi,
+                options(nomem, nostack, preserves_flags));
+        }
+        (hi as u64) << 32 | lo as u64
+    }
+
+    /// Whether `feature` is present according to `c` (Intel SDM vol. 2, CPUID; AVX needs the
+    /// XMM and YMM state enabled in XCR0, AVX-512 also the opmask and ZMM states).
+    pub fn has(c: &Cpuid, feature: &str) -> bool {
+        let bit = |reg: u32, b: u32| reg >> b & 1 == 1;
+        let avx_state = c.xcr0 & 0b110 == 0b110;
+        let avx512_state = avx_state && c.xcr0 & 0b1110_0000 == 0b1110_0000;
+        let (l1, l7) = (&c.leaf1, &c.leaf7);
+        match feature {
+            "sse3" => bit(l1.ecx, 0),
+            "ssse3" => bit(l1.ecx, 9),
+            "sse4.1" => bit(l1.ecx, 19),
+            "sse4.2" => bit(l1.ecx, 20),
+            "popcnt" => bit(l1.ecx, 23),
+            "movbe" => bit(l1.ecx, 22),
+            "avx" => avx_state && bit(l1.ecx, 28),
+            "fma" => avx_state && bit(l1.ecx, 12),
+            "f16c" => avx_state && bit(l1.ecx, 29),
+            "avx2" => avx_state && bit(l7.ebx, 5),
+            "bmi1" => bit(l7.ebx, 3),
+            "bmi2" => bit(l7.ebx, 8),
+            "lzcnt" => bit(c.ext1.ecx, 5),
+            "avx512f" => avx512_state && bit(l7.ebx, 16),
+            "avx512dq" => avx512_state && bit(l7.ebx, 17),
+            "avx512cd" => avx512_state && bit(l7.ebx, 28),
+            "avx512bw" => avx512_state && bit(l7.ebx, 30),
+            "avx512vl" => avx512_state && bit(l7.ebx, 31),
+            _ => false,
+        }
+    }
+}
 
 #[cfg(test)]
 mod tests {
@@ -165,6 +253,25 @@ mod tests {
         for pair in Isa::ALL.windows(2) {
             assert!(pair[0].features().iter().all(|f| pair[1].features().contains(f)));
         }
+    }
+
+    /// CPUID and XCR0 read directly agree with std's detection for every feature this build
+    /// does not enable (std answers `true` without asking for the enabled ones).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn cpuid_agrees_with_std_where_std_asks_the_cpu() {
+        macro_rules! check {
+            ($($name:tt),*) => {$(
+                if !cfg!(target_feature = $name) {
+                    assert_eq!(cpu_has($name), is_x86_feature_detected!($name), $name);
+                }
+            )*};
+        }
+        check!(
+            "sse3", "ssse3", "sse4.1", "sse4.2", "popcnt", "avx", "avx2", "fma", "bmi1", "bmi2",
+            "lzcnt", "movbe", "f16c", "avx512f", "avx512bw", "avx512cd", "avx512dq", "avx512vl"
+        );
+        assert!(!cpu_has("no-such-feature"));
     }
 
     #[test]
