@@ -77,6 +77,28 @@ impl Decision {
     }
 }
 
+/// Hash of (seed, pixel): the root of a pixel's Sobol keys, shared by all its samples.
+#[inline]
+pub fn pixel_key(seed: u64, pixel: u64) -> u32 {
+    splitmix64(seed ^ splitmix64(pixel).rotate_left(17)) as u32
+}
+
+/// The camera-jitter numbers of `N` paths of the Sobol sampler (pixel keys and sample
+/// indices), each equal to its `PathSampler::get_2d(Sobol, 0, CameraJitter, 0, 1)`: one
+/// fixed-size lane loop, which the compiler vectorises as it does `DrawBatch`'s.
+#[inline]
+pub fn sobol_camera_jitter<const N: usize>(
+    pixel_keys: &[u32; N],
+    samples: &[u32; N],
+) -> ([f32; N], [f32; N]) {
+    let dimension = Decision::CameraJitter.dimension(0);
+    let (mut x, mut y) = ([0.0f32; N], [0.0f32; N]);
+    for l in 0..N {
+        [x[l], y[l]] = sobol::sobol_2d(sobol::mix32(pixel_keys[l] ^ dimension), samples[l]);
+    }
+    (x, y)
+}
+
 /// The random numbers of one path (one pixel sample).
 #[derive(Debug, Clone)]
 pub struct PathSampler {
@@ -94,9 +116,41 @@ impl PathSampler {
     pub fn new(seed: u64, pixel: u64, sample: u32, spp: u32) -> PathSampler {
         PathSampler {
             rng: Pcg32::for_index(seed, pixel * spp as u64 + sample as u64),
-            pixel_key: splitmix64(seed ^ splitmix64(pixel).rotate_left(17)) as u32,
+            pixel_key: pixel_key(seed, pixel),
             sample,
         }
+    }
+
+    /// The sampler of sample `sample` of a pixel whose key is `pixel_key` (`pixel_key(seed,
+    /// pixel)`, hashed once per pixel), for a render of `kind`. Equal to `new` wherever `kind`
+    /// reads it: the Sobol sampler never touches the independent stream, so it is not seeded
+    /// (two `splitmix64` and two PCG steps per path that camera-ray generation used to pay).
+    #[inline]
+    pub fn for_pixel(
+        kind: SamplerKind,
+        seed: u64,
+        pixel: u64,
+        pixel_key: u32,
+        sample: u32,
+        spp: u32,
+    ) -> PathSampler {
+        let rng = match kind {
+            SamplerKind::Independent => Pcg32::for_index(seed, pixel * spp as u64 + sample as u64),
+            SamplerKind::Sobol => Pcg32::UNUSED,
+        };
+        PathSampler { rng, pixel_key, sample }
+    }
+
+    /// The root of this pixel's Sobol keys (see `pixel_key`).
+    #[inline]
+    pub fn pixel_key(&self) -> u32 {
+        self.pixel_key
+    }
+
+    /// The sample's index within its pixel.
+    #[inline]
+    pub fn sample(&self) -> u32 {
+        self.sample
     }
 
     /// Two numbers in [0, 1) for `decision` at path depth `depth`. A decision taken `count`

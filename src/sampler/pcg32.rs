@@ -9,6 +9,10 @@ pub struct Pcg32 {
 const MULT: u64 = 6364136223846793005;
 
 impl Pcg32 {
+    /// A generator for slots that are never drawn from (a path of the Sobol sampler), made
+    /// without the cost of seeding one.
+    pub const UNUSED: Pcg32 = Pcg32 { state: 0, inc: 1 };
+
     /// A generator on stream `stream` (any value; the increment is made odd), seeded with `seed`.
     pub fn new(seed: u64, stream: u64) -> Pcg32 {
         let mut rng = Pcg32 { state: 0, inc: (stream << 1) | 1 };

@@ -1,6 +1,8 @@
 //! The course pinhole camera (SCENE_FORMAT.md, "Camera"): it ignores the camera node's position
 //! and frames the scene's bounding box along the camera's view direction.
 
+use wide::f32x8;
+
 use crate::math::{Aabb, Ray, Vec3};
 
 /// The camera as the file describes it, before framing.
@@ -95,6 +97,26 @@ impl Camera {
         self.generate_ray(px / self.width as f32, 1.0 - py / self.height as f32)
     }
 
+    /// The directions of `ray_through_pixel` for 8 image points at once, in SIMD lanes that
+    /// repeat its operations in its order, so each equals the scalar ray's bit for bit.
+    #[inline]
+    pub fn dirs_through_pixels(&self, px: [f32; 8], py: [f32; 8]) -> [Vec3; 8] {
+        let one = f32x8::splat(1.0);
+        let two = f32x8::splat(2.0);
+        let sx = f32x8::from(px) / f32x8::splat(self.width as f32);
+        let sy = one - f32x8::from(py) / f32x8::splat(self.height as f32);
+        let cx = (two * sx - one) * f32x8::splat(self.tan_half_h);
+        let cy = (two * sy - one) * f32x8::splat(self.tan_half_v);
+        let axis = |c: fn(Vec3) -> f32| {
+            cx * f32x8::splat(c(self.x)) + cy * f32x8::splat(c(self.y)) - f32x8::splat(c(self.z))
+        };
+        let (x, y, z) = (axis(|v| v.x), axis(|v| v.y), axis(|v| v.z));
+        // glam's `normalize`: times the reciprocal of the length, dot product summed x, y, z.
+        let recip = one / (x * x + y * y + z * z).sqrt();
+        let (x, y, z) = ((x * recip).to_array(), (y * recip).to_array(), (z * recip).to_array());
+        std::array::from_fn(|i| Vec3::new(x[i], y[i], z[i]))
+    }
+
     /// Horizontal and vertical field of view for this image size, degrees.
     pub fn fov_deg(&self) -> (f32, f32) {
         (2.0 * self.tan_half_h.atan().to_degrees(), 2.0 * self.tan_half_v.atan().to_degrees())
@@ -120,6 +142,35 @@ mod tests {
 
     fn unit_box() -> Aabb {
         Aabb { min: Vec3::splat(-1.0), max: Vec3::splat(1.0) }
+    }
+
+    /// The lane directions are the scalar rays' directions bit for bit (camera-ray generation
+    /// relies on it: images do not change), over many image points and two framings.
+    #[test]
+    fn lane_directions_equal_scalar_rays() {
+        let mut rng = crate::sampler::Pcg32::new(3, 4);
+        for (desc, w, h) in [
+            (CameraDesc::default(), 400, 300),
+            (
+                CameraDesc { hfov_deg: 70.0, vfov_deg: 20.0, view_dir: Vec3::new(0.3, -0.4, -1.0) },
+                123,
+                77,
+            ),
+        ] {
+            let camera = Camera::new(&desc, unit_box(), w, h);
+            for _ in 0..2000 {
+                let px: [f32; 8] = std::array::from_fn(|_| rng.next_f32() * w as f32);
+                let py: [f32; 8] = std::array::from_fn(|_| rng.next_f32() * h as f32);
+                let dirs = camera.dirs_through_pixels(px, py);
+                for i in 0..8 {
+                    let want = camera.ray_through_pixel(px[i], py[i]).dir;
+                    assert_eq!(
+                        dirs[i].to_array().map(f32::to_bits),
+                        want.to_array().map(f32::to_bits)
+                    );
+                }
+            }
+        }
     }
 
     #[test]
