@@ -273,8 +273,8 @@ fn zero_light_samples_render_without_panicking() {
 
 /// Diffuse vertices shaded eight at a time in SIMD lanes give the same bytes as shading every
 /// vertex alone, whatever else the scene holds: every course scene under light sampling and
-/// MIS (lanes apply to the area-lit ones and to triangle emitters; scenes with point or sky
-/// lights, or emissive spheres under MIS, stay scalar), at -m 1 and -m 5,
+/// MIS (lanes apply to every kind of scene light and to triangle emitters; emissive spheres
+/// under MIS stay scalar), at -m 1 and -m 5,
 /// with -l 3, with adaptive sampling, and the project's Cornell box whose mirror and glass
 /// vertices interleave with lane-shaded walls in one queue. The statistics (rays and traversal
 /// counters) must agree too, so the queues held the same rays in the same order.
@@ -285,8 +285,11 @@ fn diffuse_vertices_in_simd_lanes_give_the_same_image_as_one_by_one() {
     let mut scenes = common::all_course_scenes();
     scenes.push(std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/cornell.dae"));
     let mut laned_scenes = 0;
+    // Per kind of scene light (area, point, directional, ambient): laned renders that had one.
+    let mut laned_kinds = [0usize; 4];
     for path in &scenes {
         let scene = pathtracer::scene::collada::load(path).unwrap();
+        let kinds = light_kinds(&scene);
         let accel = Accel::build(&scene, AccelKind::Bvh);
         let runs = [(1, 1, None), (5, 3, None), (5, 1, Some((4, 0.05)))];
         for ((m, l, adaptive), integrator) in runs.into_iter().flat_map(|r| [(r, LIGHT), (r, MIS)])
@@ -321,8 +324,29 @@ fn diffuse_vertices_in_simd_lanes_give_the_same_image_as_one_by_one() {
             sa.lane_vertices = 0;
             assert_eq!(sa, b.stats, "{name} -m {m} -l {l}: lanes changed the queues");
             laned_scenes += (a.stats.lane_vertices > 0) as usize;
+            if a.stats.lane_vertices > 0 {
+                for (n, has) in laned_kinds.iter_mut().zip(kinds) {
+                    *n += has as usize;
+                }
+            }
         }
     }
     // The Cornell box alone, without the course scenes, still exercises the lanes.
     assert!(laned_scenes >= 6, "lanes shaded vertices in only {laned_scenes} renders");
+    if scenes.len() > 1 {
+        // Every kind of scene light went through the lanes somewhere in the course scenes.
+        assert!(laned_kinds.iter().all(|&n| n > 0), "laned renders per light kind {laned_kinds:?}");
+    }
+}
+
+/// Which kinds of scene light `scene` has: area, point, directional, ambient.
+fn light_kinds(scene: &pathtracer::scene::Scene) -> [bool; 4] {
+    use pathtracer::scene::Light;
+    let has = |f: fn(&Light) -> bool| scene.lights.iter().any(f);
+    [
+        has(|l| matches!(l, Light::Area { .. })),
+        has(|l| matches!(l, Light::Point { .. })),
+        has(|l| matches!(l, Light::Directional { .. })),
+        has(|l| matches!(l, Light::Ambient { .. })),
+    ]
 }

@@ -1,11 +1,11 @@
 //! Light-sampling vertices on diffuse surfaces, `LANES` paths at a time.
 //!
-//! The course scenes are diffuse boxes lit by area lights. Shaded one vertex after another
+//! Most course scenes are diffuse surfaces under area, point, directional or sky lights. Shaded one vertex after another
 //! (`path::shade_hit`), such a vertex is a chain of dependent square roots, divisions and
 //! compares, and shading was half of a render's time (PERF.md "Whole renders"). Here the same
 //! arithmetic runs over `LANES` vertices in SIMD lanes: each lane computes, operation for
 //! operation and in the same order, what `path::shade_hit` computes for
-//! `DirectLighting::LightSampling` at a `Material::Diffuse` vertex lit by area lights, so the
+//! `DirectLighting::LightSampling` at a `Material::Diffuse` vertex lit by any scene lights, so the
 //! images are bit-identical to the scalar path's (tests/lighting.rs), which stays for every
 //! other case.
 
@@ -210,12 +210,12 @@ pub struct DiffuseOutputs {
 }
 
 /// Whether `shade_diffuse` can shade this integrator's vertices on diffuse surfaces: light
-/// sampling with area lights only, or MIS with triangle emitters and no other lights.
+/// sampling with any scene lights, or MIS with triangle emitters (and any scene lights).
 pub fn applies(ctx: &RenderContext, direct: DirectLighting) -> bool {
-    let area_lights = ctx.lights.scene_lights.iter().all(|l| matches!(l, Light::Area { .. }));
     match direct {
-        DirectLighting::LightSampling => area_lights,
-        DirectLighting::Mis => area_lights && ctx.lights.emitters_are_triangles(),
+        // Every kind of scene light has a lane sampler (`sample_scene_light`).
+        DirectLighting::LightSampling => true,
+        DirectLighting::Mis => ctx.lights.emitters_are_triangles(),
         DirectLighting::Hemisphere => false,
     }
 }
@@ -235,7 +235,10 @@ struct Vertex {
 }
 
 /// Light samples of `lights::LightSample`, lane by lane; `sampled` masks the lanes that have one.
+/// `finite`: whether the sampled points are at a finite distance (area and point lights), the
+/// same for every lane of one light.
 struct LightLanes {
+    finite: bool,
     wi: V3,
     dist: V,
     li: V3,
@@ -265,10 +268,10 @@ pub fn shade_diffuse(
     out.shadows.clear();
     let mut slot = layout.light;
     for light in &ctx.lights.scene_lights {
-        let n = ctx.light_samples;
+        let n = if light.is_delta() { 1 } else { ctx.light_samples };
         let scale = V::splat(1.0 / n as f32);
         for _ in 0..n {
-            let ls = sample_area_light(light, v.p, number(slot, 0), number(slot, 1));
+            let ls = sample_scene_light(light, &v, number(slot, 0), number(slot, 1));
             out.shadows.push(shadow_ray(ctx, &v, &ls, scale));
             slot += 1;
         }
@@ -342,30 +345,79 @@ fn vertex(lanes: &DiffuseLanes) -> Vertex {
     }
 }
 
-/// `lights::sample_scene_light` for an area light.
+/// `lights::sample_scene_light` at the lanes' vertices, for any kind of scene light.
 #[inline(always)]
-fn sample_area_light(light: &Light, p: V3, u0: V, u1: V) -> LightLanes {
-    let Light::Area { position, direction, dim_x, dim_y, radiance } = *light else {
-        unreachable!("shade_diffuse runs only with area lights (`applies`)")
-    };
-    let zero = V::splat(0.0);
-    let half = V::splat(0.5);
-    let q = V3::splat(position)
-        .add(V3::splat(dim_x).scale(u0 - half))
-        .add(V3::splat(dim_y).scale(u1 - half));
-    let d = q.sub(p);
-    let dist = d.dot(d).sqrt();
-    let wi = d.div(dist);
-    let cos_l = neg(V3::splat(direction).dot(wi));
-    let area = V::splat(dim_x.cross(dim_y).length());
-    LightLanes {
-        wi,
-        dist,
-        li: V3::splat(radiance),
-        pdf: dist * dist / (area * cos_l),
-        cos_light: cos_l,
-        sampled: gt(cos_l, zero) & gt(dist, zero) & gt(area, zero),
+fn sample_scene_light(light: &Light, v: &Vertex, u0: V, u1: V) -> LightLanes {
+    let (zero, one, inf) = (V::splat(0.0), V::splat(1.0), V::splat(f32::INFINITY));
+    let p = v.p;
+    match *light {
+        Light::Area { position, direction, dim_x, dim_y, radiance } => {
+            let half = V::splat(0.5);
+            let q = V3::splat(position)
+                .add(V3::splat(dim_x).scale(u0 - half))
+                .add(V3::splat(dim_y).scale(u1 - half));
+            let d = q.sub(p);
+            let dist = d.dot(d).sqrt();
+            let wi = d.div(dist);
+            let cos_l = neg(V3::splat(direction).dot(wi));
+            let area = V::splat(dim_x.cross(dim_y).length());
+            LightLanes {
+                finite: true,
+                wi,
+                dist,
+                li: V3::splat(radiance),
+                pdf: dist * dist / (area * cos_l),
+                cos_light: cos_l,
+                sampled: gt(cos_l, zero) & gt(dist, zero) & gt(area, zero),
+            }
+        }
+        Light::Point { position, radiance } => {
+            let d = V3::splat(position).sub(p);
+            let dist = d.dot(d).sqrt();
+            LightLanes {
+                finite: true,
+                wi: d.div(dist),
+                dist,
+                li: V3::splat(radiance),
+                pdf: one,
+                cos_light: one,
+                sampled: gt(dist, zero),
+            }
+        }
+        Light::Directional { direction, radiance } => LightLanes {
+            finite: false,
+            wi: V3::splat(direction),
+            dist: inf,
+            li: V3::splat(radiance),
+            pdf: one,
+            cos_light: one,
+            sampled: V::from_bitmask(!0),
+        },
+        Light::Ambient { radiance } => {
+            // `bsdf::cosine_hemisphere` in the shading frame, as `math::orthonormal_basis`
+            // builds it around the shading normal.
+            let l = cosine_hemisphere(u0, u1);
+            let f = &v.frame;
+            let wi = f.t.scale(l.x).add(f.b.scale(l.y)).add(f.n.scale(l.z));
+            LightLanes {
+                finite: false,
+                wi,
+                dist: inf,
+                li: V3::splat(radiance),
+                pdf: l.z / V::splat(std::f32::consts::PI),
+                cos_light: one,
+                sampled: gt(wi.y, zero) & gt(l.z, zero),
+            }
+        }
     }
+}
+
+/// `bsdf::cosine_hemisphere`, lane by lane.
+#[inline(always)]
+fn cosine_hemisphere(u1: V, u2: V) -> V3 {
+    let r = u1.sqrt();
+    let (sin_phi, cos_phi) = sincos_turns(u2);
+    V3 { x: r * cos_phi, y: r * sin_phi, z: max(V::splat(1.0) - u1, V::splat(0.0)).sqrt() }
 }
 
 /// `LightSet::sample_emitter` for triangle emitters: the pick lane by lane (an alias-table
@@ -402,6 +454,7 @@ fn sample_triangle_emitter(ctx: &RenderContext, p: V3, u0: V, u1: V) -> LightLan
     let wi = d.div(dist);
     let cos_l = neg(nq.dot(wi));
     LightLanes {
+        finite: true,
         wi,
         dist,
         li: gather(|t| t.radiance),
@@ -422,11 +475,14 @@ fn shadow_ray(ctx: &RenderContext, v: &Vertex, ls: &LightLanes, scale: V) -> Sha
     let contribution = v.throughput.mul(f).mul(ls.li).scale(wl.z * scale / ls.pdf);
     let useful = gt(contribution.max_element(), zero) & contribution.is_finite();
     let origin = offset_origin(v.p, v.ng, ls.wi, ctx.scene_epsilon);
-    let q = v.p.add(ls.wi.scale(ls.dist));
-    let d = q.sub(origin);
-    let len = d.dot(d).sqrt();
-    let dir = d.div(len);
-    let t_max = len - ray_epsilon(q, ctx.scene_epsilon) / max(ls.cos_light, V::splat(1e-2));
+    let (dir, t_max) = if ls.finite {
+        let q = v.p.add(ls.wi.scale(ls.dist));
+        let d = q.sub(origin);
+        let len = d.dot(d).sqrt();
+        (d.div(len), len - ray_epsilon(q, ctx.scene_epsilon) / max(ls.cos_light, V::splat(1e-2)))
+    } else {
+        (ls.wi, V::splat(f32::INFINITY))
+    };
     let valid = v.used & ls.sampled & lit & useful & gt(t_max, zero);
     let mut s = ShadowLanes {
         valid: valid.bitmask(),
@@ -452,10 +508,7 @@ fn continue_diffuse(
     let (p, ng, frame, wo, throughput, used) = (v.p, v.ng, &v.frame, v.wo, v.throughput, v.used);
     let zero = V::splat(0.0);
     let (u1, u2) = (number(layout.bsdf, 0), number(layout.bsdf, 1));
-    // `bsdf::cosine_hemisphere`.
-    let r = u1.sqrt();
-    let (sin_phi, cos_phi) = sincos_turns(u2);
-    let wi = V3 { x: r * cos_phi, y: r * sin_phi, z: max(V::splat(1.0) - u1, zero).sqrt() };
+    let wi = cosine_hemisphere(u1, u2);
     let mut valid = used & gt(wo.z, zero) & gt(wi.z, zero);
     let mut t = throughput.mul(V3::load(&lanes.albedo));
     if depth + 1 >= RR_START_DEPTH {
