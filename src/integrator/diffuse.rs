@@ -1,7 +1,8 @@
 //! Light-sampling vertices on diffuse surfaces, `LANES` paths at a time.
 //!
-//! Most course scenes are diffuse surfaces under area, point, directional or sky lights. Shaded one vertex after another
-//! (`path::shade_hit`), such a vertex is a chain of dependent square roots, divisions and
+//! Most course scenes are diffuse surfaces under area, point, directional or sky lights. Shaded
+//! one vertex after another (`path::shade_hit`), such a vertex is a chain of dependent square
+//! roots, divisions and
 //! compares, and shading was half of a render's time (PERF.md "Whole renders"). Here the same
 //! arithmetic runs over `LANES` vertices in SIMD lanes: each lane computes, operation for
 //! operation and in the same order, what `path::shade_hit` computes for
