@@ -1,14 +1,13 @@
 //! Light-sampling vertices on diffuse surfaces, `LANES` paths at a time.
 //!
-//! Most course scenes are diffuse surfaces under area, point, directional or sky lights. Shaded
-//! one vertex after another (`path::shade_hit`), such a vertex is a chain of dependent square
-//! roots, divisions and
-//! compares, and shading was half of a render's time (PERF.md "Whole renders"). Here the same
-//! arithmetic runs over `LANES` vertices in SIMD lanes: each lane computes, operation for
+//! Most course scenes are diffuse surfaces under area, point, directional or sky lights. Shaded one
+//! vertex after another (`path::shade_hit`), such a vertex is a chain of dependent square roots,
+//! divisions and compares, and shading was half of a render's time (PERF.md "Whole renders"). Here
+//! the same arithmetic runs over `LANES` vertices in SIMD lanes: each lane computes, operation for
 //! operation and in the same order, what `path::shade_hit` computes for
 //! `DirectLighting::LightSampling` at a `Material::Diffuse` vertex lit by any scene lights, so the
-//! images are bit-identical to the scalar path's (tests/lighting.rs), which stays for every
-//! other case.
+//! images are bit-identical to the scalar path's (tests/lighting.rs), which stays for every other
+//! case.
 
 use std::f32::consts::FRAC_1_PI;
 
