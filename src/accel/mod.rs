@@ -3,8 +3,8 @@
 //! Triangles live in SoA blocks of eight in leaf order under one flat 8-wide BVH (224-byte
 //! nodes, one SIMD test for eight boxes), collapsed from a binned-SAH binary BVH that is
 //! dropped once collapsed. Single rays and packets traverse the same wide tree, so the
-//! structure is the wide nodes plus the triangle blocks. The course scenes hold at most a handful of analytic
-//! spheres, so they are a short list tested after the triangles rather than BVH primitives.
+//! structure is the wide nodes plus the triangle blocks. Analytic spheres are tested after the
+//! triangles (`spheres`): a short list, or a tree of their own when a scene has many.
 
 mod binary_node;
 pub mod build;
@@ -13,6 +13,7 @@ mod leaf;
 pub mod node;
 pub(crate) mod packet;
 mod packet_interval;
+mod spheres;
 pub(crate) mod traverse_packet;
 pub mod traverse_single;
 pub(crate) mod wide_node;
@@ -21,13 +22,12 @@ use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
 
-use crate::geometry::prim;
-use crate::geometry::sphere::intersect_sphere;
 use crate::geometry::TriangleSoa;
 use crate::math::{Aabb, Hit, Ray};
-use crate::scene::{Scene, Sphere};
+use crate::scene::Scene;
 use crate::simd::{LaneWidth, Lanes, VFloat};
 use crate::{Error, Result};
+use spheres::Spheres;
 
 pub use binary_node::{binary_node, BinaryNode};
 pub use build::BuildParams;
@@ -70,7 +70,8 @@ pub enum AccelKind {
 ///   8-wide SIMD test of k < 8 triangles still counts k; an any-hit ray that stops at a
 ///   blocking group of 8 counts the groups tested). A packet leaf counts, per triangle, the
 ///   lanes active at that leaf (any-hit: the lanes not yet blocked).
-/// - `sphere_tests`: ray-sphere tests (spheres are not in the BVH).
+/// - `sphere_tests`: ray-sphere tests (spheres are not in the triangles' BVH; the node tests
+///   of their own tree, `spheres`, count as node tests).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct TraceStats {
     /// Queries traced (a packet counts its active lanes).
@@ -99,7 +100,7 @@ impl TraceStats {
 pub struct Accel {
     wide_nodes: Vec<WideNode>,
     tris: TriangleSoa,
-    spheres: Vec<Sphere>,
+    spheres: Spheres,
     bounds: Aabb,
     build_time: Duration,
     /// Whether the structure outgrows the caches (`traverse_single::STREAM_LARGE_BYTES`):
@@ -168,7 +169,7 @@ impl Accel {
         let mut accel = Accel {
             wide_nodes,
             tris,
-            spheres: scene.spheres.clone(),
+            spheres: Spheres::new(&scene.spheres, scene.bounds().diagonal()),
             bounds: scene.bounds(),
             build_time: t0.elapsed(),
             large: false,
@@ -248,7 +249,7 @@ impl Accel {
         stats.rays += 1;
         let mut r = *ray;
         let best = traverse_single::intersect(&self.wide_nodes, &self.tris, &mut r, stats);
-        self.spheres_after(r, best, stats)
+        self.spheres.closest(r, best, stats)
     }
 
     /// Closest hits of any number of rays (`hits[i]` answers `rays[i]`), the same as
@@ -269,33 +270,16 @@ impl Accel {
                 if let Some(hit) = h {
                     r.t_max = hit.t;
                 }
-                *h = self.spheres_after(r, *h, stats);
+                *h = self.spheres.closest(r, *h, stats);
             }
         }
-    }
-
-    /// The spheres after the triangles: `r.t_max` is the triangle hit's distance, if any.
-    fn spheres_after(
-        &self,
-        mut r: Ray,
-        mut best: Option<Hit>,
-        stats: &mut TraceStats,
-    ) -> Option<Hit> {
-        for (i, s) in self.spheres.iter().enumerate() {
-            stats.sphere_tests += 1;
-            if let Some(t) = intersect_sphere(&r, s) {
-                r.t_max = t;
-                best = Some(Hit { t, u: 0.0, v: 0.0, prim: prim::sphere(i as u32) });
-            }
-        }
-        best
     }
 
     /// Whether anything blocks the ray within [t_min, t_max].
     pub fn occluded(&self, ray: &Ray, stats: &mut TraceStats) -> bool {
         stats.rays += 1;
         traverse_single::occluded(&self.wide_nodes, &self.tris, ray, stats)
-            || self.spheres_block(ray, stats)
+            || self.spheres.blocks(ray, stats)
     }
 
     /// Occlusion of any number of rays (`blocked[i]` answers `rays[i]`), the same as
@@ -313,15 +297,8 @@ impl Accel {
         stats.rays += rays.len() as u64;
         occluded_stream::<STREAM_LARGE>(&self.wide_nodes, &self.tris, rays, blocked, stats);
         for (r, b) in rays.iter().zip(blocked.iter_mut()) {
-            *b = *b || self.spheres_block(r, stats);
+            *b = *b || self.spheres.blocks(r, stats);
         }
-    }
-
-    fn spheres_block(&self, ray: &Ray, stats: &mut TraceStats) -> bool {
-        self.spheres.iter().any(|s| {
-            stats.sphere_tests += 1;
-            intersect_sphere(ray, s).is_some()
-        })
     }
 
     /// Closest hits of up to `W` rays traced as one packet: `hits[i]` answers `rays[i]`
@@ -372,16 +349,7 @@ impl Accel {
             return;
         }
         // The spheres after the triangles, in the order `intersect` tests them.
-        for (i, best) in hits.iter_mut().enumerate().filter(|(i, _)| active & (1 << i) != 0) {
-            let mut r = p.ray(i);
-            for (k, s) in self.spheres.iter().enumerate() {
-                stats.sphere_tests += 1;
-                if let Some(t) = intersect_sphere(&r, s) {
-                    r.t_max = t;
-                    *best = Some(Hit { t, u: 0.0, v: 0.0, prim: prim::sphere(k as u32) });
-                }
-            }
-        }
+        self.spheres.closest_packet(p, active, hits, stats);
     }
 
     /// Occlusion of up to `W` rays traced as one packet: `blocked[i]` answers `rays[i]`,
@@ -421,15 +389,14 @@ impl Accel {
             stack,
             stats,
         );
+        // Lanes a triangle blocks need no sphere test.
+        let bits = if self.spheres.is_empty() {
+            bits
+        } else {
+            bits | self.spheres.blocks_packet(packet, active & !bits, stats)
+        };
         for (i, out) in blocked.iter_mut().enumerate().take(W) {
-            *out = bits & (1 << i) != 0
-                || (active & (1 << i) != 0 && {
-                    let r = packet.ray(i);
-                    self.spheres.iter().any(|s| {
-                        stats.sphere_tests += 1;
-                        intersect_sphere(&r, s).is_some()
-                    })
-                });
+            *out = bits & (1 << i) != 0;
         }
     }
 
