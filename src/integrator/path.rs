@@ -113,12 +113,31 @@ pub fn plan_draws(
     if direct == DirectLighting::Mis && ctx.lights.has_emitters() {
         batch.add(Decision::Emitter, n);
     }
-    layout.bsdf = batch.add(Decision::Bsdf, 1);
+    // The continuation's numbers, unless no vertex at this depth continues (`shade_hit`): at
+    // the last depth only MIS and specular vertices do. Each decision draws from its own
+    // sequence, so leaving one out changes no other number; it saved half the draws of a
+    // `-m 1` render (PERF.md, "Whole renders").
+    layout.bsdf = batch.stride();
+    if !any_vertex_continues(direct, ctx, depth) {
+        return layout;
+    }
+    batch.add(Decision::Bsdf, 1);
     let any_lobe_choice = ctx.scene.materials.iter().any(bsdf::chooses_lobe);
     if depth + 1 >= RR_START_DEPTH || any_lobe_choice {
         layout.lobe = Some(batch.add(Decision::LobeAndRoulette, 1));
     }
     layout
+}
+
+/// Whether a vertex reached by a ray of depth `depth < max_depth` may continue the path: as
+/// `shade_hit` decides, before the last depth always, at it under MIS and at specular
+/// surfaces (emitters never continue).
+fn any_vertex_continues(direct: DirectLighting, ctx: &RenderContext, depth: u32) -> bool {
+    let specular =
+        |m: &Material| !bsdf::has_smooth_lobe(m) && !matches!(m, Material::Emission { .. });
+    depth + 1 < ctx.max_depth
+        || direct == DirectLighting::Mis
+        || ctx.scene.materials.iter().any(specular)
 }
 
 /// Uniform hemisphere sampling takes `-l` directions per scene light (at least one light).
