@@ -16,7 +16,7 @@ use super::path::{DirectLighting, DrawLayout, RR_START_DEPTH};
 use super::{PathState, RenderContext, ShadeOutputs};
 use crate::geometry::prim;
 use crate::math::{Hit, Ray, Vec3};
-use crate::sampler::DrawBatch;
+use crate::sampler::{DrawBatch, DRAW_BLOCK};
 use crate::scene::{Light, Scene};
 use crate::simd::SimdF32;
 
@@ -26,6 +26,9 @@ use super::lane_math::{
 
 /// Vertices shaded together.
 pub const LANES: usize = 8;
+// A chunk of the queue (`stages::shade`) is one block of the draw batch, so its numbers are
+// side by side.
+const _: () = assert!(LANES == DRAW_BLOCK);
 
 /// Up to `LANES` diffuse vertices, loaded lane by lane: each lane's ray and hit, and what
 /// reconstructing its surface reads (`load_surfaces`), so that `Surface::at` runs in lanes.
@@ -261,8 +264,18 @@ pub fn shade_diffuse(
     lanes.pad();
     lanes.load_surfaces(ctx.scene);
     let v = vertex(lanes);
+    // The chunk's numbers sit in one block of the batch (`[slot][lane]`, the chunk's queue
+    // entries in its lanes); lane l reads the block lane of its vertex.
+    let (block, _) = draws.block_of(lanes.queue[0]);
+    let block_lane: [usize; LANES] = std::array::from_fn(|l| lanes.queue[l] % DRAW_BLOCK);
+    let in_order = block_lane == std::array::from_fn(|l| l);
     let number = |slot: usize, c: usize| -> V {
-        let a: Lanes = std::array::from_fn(|l| draws.of(lanes.queue[l])[slot][c]);
+        let row = &block[slot * DRAW_BLOCK..(slot + 1) * DRAW_BLOCK];
+        let a: Lanes = if in_order {
+            std::array::from_fn(|l| row[l][c])
+        } else {
+            std::array::from_fn(|l| row[block_lane[l]][c])
+        };
         V::load(&a)
     };
     out.shadows.clear();

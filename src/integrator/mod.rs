@@ -21,7 +21,7 @@ pub use path::{DirectLighting, DrawLayout};
 pub use queues::{PathState, RayQueue, ShadowQueue};
 
 use crate::math::{Ray, Vec3};
-use crate::sampler::DrawBatch;
+use crate::sampler::{DrawBatch, Numbers};
 
 /// The closed set of integrators.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -92,7 +92,7 @@ impl Integrator {
         surface: &Surface,
         path: u32,
         paths: &mut PathState,
-        numbers: (&DrawLayout, &[[f32; 2]]),
+        numbers: (&DrawLayout, Numbers),
         out: &mut ShadeOutputs,
     ) {
         match *self {

@@ -18,7 +18,7 @@ use super::bsdf::{self, UNIFORM_HEMISPHERE_PDF};
 use super::lights::{sample_scene_light, LightSample};
 use super::{PathState, RenderContext, ShadeOutputs, Surface};
 use crate::math::{orthonormal_basis, Ray, Vec3};
-use crate::sampler::{Decision, DrawBatch};
+use crate::sampler::{Decision, DrawBatch, Numbers};
 use crate::scene::Material;
 
 /// How direct light is estimated at each path vertex.
@@ -69,7 +69,7 @@ struct Vertex<'a> {
     /// Depth of the ray that reached this vertex (camera rays: 0).
     depth: u32,
     /// This vertex's random numbers, laid out as `DrawLayout` says.
-    numbers: &'a [[f32; 2]],
+    numbers: Numbers<'a>,
 }
 
 /// Where each decision's numbers sit among a vertex's planned draws (`plan_draws`).
@@ -154,7 +154,7 @@ pub fn shade_hit(
     surface: &Surface,
     path: u32,
     paths: &mut PathState,
-    numbers: (&DrawLayout, &[[f32; 2]]),
+    numbers: (&DrawLayout, Numbers),
     out: &mut ShadeOutputs,
 ) {
     let (layout, numbers) = numbers;
@@ -255,10 +255,12 @@ fn sample_scene_lights(
     path: u32,
     out: &mut ShadeOutputs,
 ) {
-    let mut numbers = v.numbers[layout.light..layout.emitter].iter();
+    let mut slot = layout.light;
     for light in &ctx.lights.scene_lights {
         let n = if light.is_delta() { 1 } else { ctx.light_samples };
-        for &u in numbers.by_ref().take(n as usize) {
+        for _ in 0..n {
+            let u = v.numbers.get(slot);
+            slot += 1;
             if let Some(ls) = sample_scene_light(light, v.p, v.frame.n, u) {
                 queue_shadow_ray(ctx, v, &ls, 1.0 / n as f32, path, out);
             }
@@ -280,7 +282,7 @@ fn sample_emissive_geometry(
         return;
     }
     let n = ctx.light_samples;
-    for &u in &v.numbers[layout.emitter..layout.bsdf] {
+    for u in (layout.emitter..layout.bsdf).map(|k| v.numbers.get(k)) {
         let Some(ls) = ctx.lights.sample_emitter(ctx.scene, v.p, u) else {
             continue;
         };
@@ -338,7 +340,7 @@ fn queue_hemisphere_probes(
     out: &mut ShadeOutputs,
 ) {
     let n = hemisphere_draws(ctx);
-    for &[u1, u2] in &v.numbers[layout.light..layout.emitter] {
+    for [u1, u2] in (layout.light..layout.emitter).map(|k| v.numbers.get(k)) {
         let wi = bsdf::uniform_hemisphere(u1, u2);
         let f = bsdf::eval(v.material, v.wo, wi);
         let weight = v.throughput * f * (wi.z / (UNIFORM_HEMISPHERE_PDF * n as f32));
@@ -361,11 +363,11 @@ fn continue_path(
     out: &mut ShadeOutputs,
 ) {
     let pi = path as usize;
-    let [u1, u2] = v.numbers[layout.bsdf];
+    let [u1, u2] = v.numbers.get(layout.bsdf);
     // The lobe choice and the roulette share one draw, planned only at depths and in scenes
     // where either can apply.
     let roulette_applies = v.depth + 1 >= RR_START_DEPTH;
-    let [lobe, roulette] = layout.lobe.map_or([0.0, 0.0], |k| v.numbers[k]);
+    let [lobe, roulette] = layout.lobe.map_or([0.0, 0.0], |k| v.numbers.get(k));
     let Some(s) = bsdf::sample(v.material, v.wo, [u1, u2, lobe]) else {
         return;
     };

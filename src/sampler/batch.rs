@@ -9,7 +9,9 @@
 
 use super::{sobol, Decision, PathSampler, SamplerKind};
 
-/// One 2D number per (queued path, planned slot), in the order the slots were planned.
+/// One 2D number per (queued path, planned slot). Stored by blocks of `LANES` queue entries,
+/// slot-major within a block (`[block][slot][lane]`), so that the lanes of a shading chunk find
+/// each slot's numbers side by side and the draw loop writes them without a scatter.
 #[derive(Default)]
 pub struct DrawBatch {
     depth: u32,
@@ -49,19 +51,21 @@ impl DrawBatch {
         if self.slots.is_empty() {
             return; // Nothing planned (normal shading, or vertices past the last depth).
         }
+        let stride = self.slots.len();
+        self.numbers.resize(order.len().div_ceil(LANES) * LANES * stride, [0.0; 2]);
+        let blocks = order.chunks(LANES).zip(self.numbers.chunks_mut(LANES * stride));
         match kind {
             SamplerKind::Independent => {
-                for &p in order {
-                    let sampler = &mut samplers[p as usize];
-                    for _ in 0..self.slots.len() {
-                        self.numbers.push([sampler.rng.next_f32(), sampler.rng.next_f32()]);
+                for (paths, out) in blocks {
+                    for (l, &p) in paths.iter().enumerate() {
+                        let sampler = &mut samplers[p as usize];
+                        for k in 0..stride {
+                            out[k * LANES + l] = [sampler.rng.next_f32(), sampler.rng.next_f32()];
+                        }
                     }
                 }
             }
             SamplerKind::Sobol => {
-                let stride = self.slots.len();
-                self.numbers.resize(order.len() * stride, [0.0; 2]);
-                let blocks = order.chunks(LANES).zip(self.numbers.chunks_mut(LANES * stride));
                 for (paths, out) in blocks {
                     draw_sobol_block(&self.slots, &self.dimensions, samplers, paths, out);
                 }
@@ -69,18 +73,40 @@ impl DrawBatch {
         }
     }
 
-    /// The numbers of queue entry `q`, one per planned slot.
+    /// The numbers of queue entry `q`.
     #[inline]
-    pub fn of(&self, q: usize) -> &[[f32; 2]] {
-        let n = self.slots.len();
-        &self.numbers[q * n..(q + 1) * n]
+    pub fn of(&self, q: usize) -> Numbers<'_> {
+        let (block, lane) = self.block_of(q);
+        Numbers { block, lane }
+    }
+
+    /// The block holding queue entry `q` (`[slot][lane]`, `LANES` lanes per slot) and its lane.
+    #[inline]
+    pub fn block_of(&self, q: usize) -> (&[[f32; 2]], usize) {
+        let n = self.slots.len() * LANES;
+        (&self.numbers[q / LANES * n..(q / LANES + 1) * n], q % LANES)
     }
 }
 
-/// Paths whose numbers one SIMD pass draws.
-const LANES: usize = 8;
+/// One queue entry's numbers in a `DrawBatch`.
+#[derive(Clone, Copy)]
+pub struct Numbers<'a> {
+    block: &'a [[f32; 2]],
+    lane: usize,
+}
 
-/// Every planned number of up to `LANES` paths (`out`: their rows of `slots.len()` numbers).
+impl Numbers<'_> {
+    /// The number of planned slot `slot`.
+    #[inline]
+    pub fn get(&self, slot: usize) -> [f32; 2] {
+        self.block[slot * LANES + self.lane]
+    }
+}
+
+/// Paths whose numbers one SIMD pass draws, and the block size of the numbers' layout.
+pub const LANES: usize = 8;
+
+/// Every planned number of up to `LANES` paths (`out`: their block, `[slot][lane]`).
 /// Each slot's numbers come from one fixed-size lane loop, branch-free and all in 32-bit
 /// integers, which the compiler turns into 8-wide SIMD; lanes past `paths.len()` compute
 /// numbers nobody reads.
@@ -91,7 +117,6 @@ fn draw_sobol_block(
     paths: &[u32],
     out: &mut [[f32; 2]],
 ) {
-    let stride = slots.len();
     let (mut pixel_key, mut sample) = ([0u32; LANES], [0u32; LANES]);
     for (l, &p) in paths.iter().enumerate() {
         let s = &samplers[p as usize];
@@ -103,8 +128,9 @@ fn draw_sobol_block(
             let key = sobol::mix32(pixel_key[l] ^ dimension);
             [x[l], y[l]] = sobol::sobol_2d(key, sample[l].wrapping_mul(count).wrapping_add(sub));
         }
-        for l in 0..paths.len() {
-            out[l * stride + k] = [x[l], y[l]];
+        let row = &mut out[k * LANES..(k + 1) * LANES];
+        for l in 0..LANES {
+            row[l] = [x[l], y[l]];
         }
     }
 }
@@ -130,15 +156,24 @@ mod tests {
             let (got, s) = (batch.of(q), &mut samplers[p as usize]);
             for j in 0..4 {
                 let want = s.get_2d(SamplerKind::Sobol, depth, Decision::SceneLight(1), j, 4);
-                assert_eq!(got[lights + j as usize], want);
+                assert_eq!(got.get(lights + j as usize), want);
             }
-            assert_eq!(got[bsdf], s.get_2d(SamplerKind::Sobol, depth, Decision::Bsdf, 0, 1));
+            assert_eq!(got.get(bsdf), s.get_2d(SamplerKind::Sobol, depth, Decision::Bsdf, 0, 1));
             let want = s.get_2d(SamplerKind::Sobol, depth, Decision::LobeAndRoulette, 0, 1);
-            assert_eq!(got[lobe], want);
+            assert_eq!(got.get(lobe), want);
+        }
+        // The independent sampler: each path's numbers in slot order from its own stream.
+        let mut fresh = samplers.clone();
+        batch.draw(SamplerKind::Independent, &mut samplers, &order);
+        for (q, &p) in order.iter().enumerate() {
+            let rng = &mut fresh[p as usize].rng;
+            for k in 0..batch.stride() {
+                assert_eq!(batch.of(q).get(k), [rng.next_f32(), rng.next_f32()]);
+            }
         }
         // A plan with no slots draws nothing, for any number of paths.
         batch.plan(depth);
         batch.draw(SamplerKind::Sobol, &mut samplers, &order);
-        assert!(batch.of(order.len() - 1).is_empty());
+        assert_eq!(batch.stride(), 0);
     }
 }

@@ -10,7 +10,7 @@ mod batch;
 mod pcg32;
 pub mod sobol;
 
-pub use batch::DrawBatch;
+pub use batch::{DrawBatch, Numbers, LANES as DRAW_BLOCK};
 pub use pcg32::{splitmix64, Pcg32};
 
 /// How a render draws its random numbers (`--sampler`).
