@@ -441,7 +441,7 @@ fn sample_triangle_emitter(ctx: &RenderContext, p: V3, u0: V, u1: V) -> LightLan
     let mut u0_rescaled: Lanes = [0.0; LANES];
     let mut picked = 0u32;
     for l in 0..LANES {
-        if let Some((t, u)) = ctx.lights.pick_triangle_emitter(ctx.scene, u0.lane(l)) {
+        if let Some((t, u)) = ctx.lights.pick_triangle_emitter(u0.lane(l)) {
             (e[l], u0_rescaled[l], picked) = (t, u, picked | 1 << l);
         }
     }

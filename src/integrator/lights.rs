@@ -61,6 +61,10 @@ pub struct LightSet {
     /// emissive-geometry mode).
     pub scene_lights: Vec<Light>,
     emitters: Vec<Emitter>,
+    /// Per emitter, what `pick_triangle_emitter` hands out (a default for spheres): computed
+    /// once here rather than per pick, where the corners' loads, two areas and the pick pdf
+    /// were a tenth of a `-m 5 --shading mis` render (PERF.md, "Whole renders").
+    triangle_records: Vec<TriangleEmitter>,
     /// Emitters picked by power (area x luminance of the emitted radiance) in O(1).
     emitter_table: AliasTable,
     emitter_power: f32,
@@ -154,7 +158,18 @@ impl LightSet {
             }
         }
         set.emitter_table = AliasTable::new(&powers);
+        set.triangle_records =
+            set.emitters.iter().map(|&e| set.triangle_record(scene, e)).collect();
         set
+    }
+
+    /// What picking emitter `e` gives `diffuse::shade_diffuse` (a default for a sphere).
+    fn triangle_record(&self, scene: &Scene, e: Emitter) -> TriangleEmitter {
+        let Emitter::Triangle(t) = e else { return TriangleEmitter::default() };
+        let [a, b, c] = scene.triangle(t as usize);
+        let radiance = emitter_radiance(scene, e);
+        let (pick_pdf, area) = (self.emitter_pick_pdf(scene, e), emitter_area(scene, e));
+        TriangleEmitter { a, b, c, radiance, pick_pdf, area }
     }
 
     /// Whether there is emissive geometry to sample (never in the course's light set).
@@ -188,14 +203,11 @@ impl LightSet {
 
     /// The first half of `sample_emitter` for triangle emitters: the emitter `u0` picks, and
     /// `u0` rescaled within its share; the same values `sample_emitter` computes.
-    pub fn pick_triangle_emitter(&self, scene: &Scene, u0: f32) -> Option<(TriangleEmitter, f32)> {
+    #[inline]
+    pub fn pick_triangle_emitter(&self, u0: f32) -> Option<(TriangleEmitter, f32)> {
         let (i, u0) = self.emitter_table.sample(u0)?;
-        let e = self.emitters[i];
-        let Emitter::Triangle(t) = e else { return None };
-        let [a, b, c] = scene.triangle(t as usize);
-        let radiance = emitter_radiance(scene, e);
-        let (pick_pdf, area) = (self.emitter_pick_pdf(scene, e), emitter_area(scene, e));
-        Some((TriangleEmitter { a, b, c, radiance, pick_pdf, area }, u0))
+        let Emitter::Triangle(_) = self.emitters[i] else { return None };
+        Some((self.triangle_records[i], u0))
     }
 
     /// The solid-angle pdf with which `sample_emitter` would have chosen the point that a ray
