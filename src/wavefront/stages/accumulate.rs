@@ -9,19 +9,24 @@ use crate::integrator::lights::luminance;
 /// paths were generated (pixel by pixel, sample by sample), the same however the work was
 /// scheduled.
 pub fn accumulate(paths: &PathState, pixels: &mut PixelStats) {
-    for (&pixel, radiance) in paths.pixel.iter().zip(&paths.radiance) {
-        let i = pixel as usize;
-        let lum = luminance(*radiance) as f64;
-        pixels.lum_sum[i] += lum;
-        pixels.lum_sq_sum[i] += lum * lum;
-        pixels.count[i] += 1;
-    }
-    // A pixel's samples are consecutive paths (`generate_camera_rays`): one exact sum per run.
+    // A pixel's samples are consecutive paths (`generate_camera_rays`): one run per pixel, its
+    // moments summed in registers (in the same order, so to the same bits) rather than through
+    // memory, where each add waited on the previous one's store.
     let mut start = 0;
     while start < paths.len() {
         let pixel = paths.pixel[start];
         let len = paths.pixel[start..].iter().take_while(|&&p| p == pixel).count();
-        pixels.sum[pixel as usize].add_all(&paths.radiance[start..start + len]);
+        let run = &paths.radiance[start..start + len];
+        let i = pixel as usize;
+        let (mut sum, mut sq) = (pixels.lum_sum[i], pixels.lum_sq_sum[i]);
+        for radiance in run {
+            let lum = luminance(*radiance) as f64;
+            sum += lum;
+            sq += lum * lum;
+        }
+        (pixels.lum_sum[i], pixels.lum_sq_sum[i]) = (sum, sq);
+        pixels.count[i] += len as u32;
+        pixels.sum[i].add_all(run);
         start += len;
     }
 }
