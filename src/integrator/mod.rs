@@ -60,6 +60,16 @@ impl Integrator {
         }
     }
 
+    /// Whether a hit on an emitter by a ray of depth `depth` (whose BSDF sample had pdf
+    /// `prev_bsdf_pdf`) adds nothing and ends the path, so that shading may skip it
+    /// (`path::emission_counts`).
+    pub fn ignores_emitter_hit(&self, depth: u32, prev_bsdf_pdf: f32) -> bool {
+        match *self {
+            Integrator::Path(direct) => !path::emission_counts(direct, depth, prev_bsdf_pdf),
+            Integrator::Normals => false,
+        }
+    }
+
     /// The estimator of direct light, for integrators that have one.
     pub fn direct_lighting(&self) -> Option<DirectLighting> {
         match *self {

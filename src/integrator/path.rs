@@ -215,6 +215,14 @@ pub fn shade_hit(
     }
 }
 
+/// Whether emission seen at a vertex reached by a ray of depth `depth` (whose BSDF sample had
+/// pdf `prev_bsdf_pdf`, 0 after a specular bounce) can count at all: seen by the camera or
+/// after a specular bounce, or under MIS (weighted); after other bounces light and hemisphere
+/// sampling have counted the emitters already (SCENE_FORMAT.md).
+pub(super) fn emission_counts(direct: DirectLighting, depth: u32, prev_bsdf_pdf: f32) -> bool {
+    depth == 0 || prev_bsdf_pdf == 0.0 || direct == DirectLighting::Mis
+}
+
 /// The MIS / course weight of emission seen at a path vertex (see the module docs).
 fn emission_weight(
     direct: DirectLighting,
@@ -224,18 +232,16 @@ fn emission_weight(
     cos_l: f32,
     prev_bsdf_pdf: f32,
 ) -> f32 {
+    if !emission_counts(direct, depth, prev_bsdf_pdf) {
+        return 0.0;
+    }
     let after_specular = prev_bsdf_pdf == 0.0;
     if depth == 0 || after_specular {
         return 1.0;
     }
-    match direct {
-        DirectLighting::Mis => {
-            // Rays are unit length, so the hit distance is the ray parameter.
-            let light_pdf = ctx.lights.emitter_pdf(ctx.scene, surface.prim, surface.t, cos_l);
-            power_heuristic(1.0, prev_bsdf_pdf, ctx.light_samples as f32, light_pdf)
-        }
-        _ => 0.0,
-    }
+    // MIS; rays are unit length, so the hit distance is the ray parameter.
+    let light_pdf = ctx.lights.emitter_pdf(ctx.scene, surface.prim, surface.t, cos_l);
+    power_heuristic(1.0, prev_bsdf_pdf, ctx.light_samples as f32, light_pdf)
 }
 
 /// Veach's power heuristic (beta = 2) for nf samples of pdf f against ng samples of pdf g.

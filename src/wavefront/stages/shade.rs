@@ -57,11 +57,21 @@ pub fn shade(
             let entry = match &hits[q] {
                 None => Entry::Miss,
                 Some(hit) => {
-                    match lane_albedo(ctx, lanes_apply, surface_material(ctx.scene, hit.prim)) {
+                    let material =
+                        &ctx.scene.materials[surface_material(ctx.scene, hit.prim) as usize];
+                    match lane_albedo(lanes_apply, material) {
                         Some(albedo) => {
                             let throughput = paths.throughput[path as usize];
                             scratch.lanes.push(path, q, ray, hit, throughput, albedo);
                             Entry::Lane
+                        }
+                        // An emitter that counts nothing here ends the path as a miss does.
+                        None if matches!(material, Material::Emission { .. })
+                            && ctx
+                                .integrator
+                                .ignores_emitter_hit(depth, paths.bsdf_pdf[path as usize]) =>
+                        {
+                            Entry::Miss
                         }
                         None => Entry::Scalar(Surface::at(ctx.scene, ray, hit)),
                     }
@@ -94,7 +104,8 @@ pub fn shade(
                     ctx.integrator.shade_hit(ctx, depth, ray, s, path, paths, numbers, &mut out);
                 }
                 // Rays that leave the scene see black: scene lights (the sky included) are not
-                // geometry and are reached only by light sampling (SCENE_FORMAT.md).
+                // geometry and are reached only by light sampling (SCENE_FORMAT.md). Emitters
+                // that count nothing at this vertex end the path the same way.
                 Entry::Miss => {}
             }
         }
@@ -104,11 +115,11 @@ pub fn shade(
 
 /// The albedo of a surface that is shaded in lanes: diffuse, when lanes apply at all.
 #[inline]
-fn lane_albedo(ctx: &RenderContext, lanes_apply: bool, material: u32) -> Option<Vec3> {
+fn lane_albedo(lanes_apply: bool, material: &Material) -> Option<Vec3> {
     if !lanes_apply {
         return None;
     }
-    match ctx.scene.materials[material as usize] {
+    match *material {
         Material::Diffuse { albedo } => Some(albedo),
         _ => None,
     }
