@@ -109,13 +109,16 @@ pub struct Accel {
 }
 
 impl Accel {
-    /// Whether `scene` fits the structure: at most `MAX_TRIANGLES` triangles. The error is one
-    /// line, an [`Error::Scene`] without a path (`Error::in_scene` names the file).
+    /// Whether `scene` fits the structure: at most `MAX_TRIANGLES` triangles and as many
+    /// spheres (their tree is built the same way). The error is one line, an [`Error::Scene`]
+    /// without a path (`Error::in_scene` names the file).
     pub fn check_limits(scene: &Scene) -> Result<()> {
-        let (n, max) = (scene.triangles.len(), MAX_TRIANGLES);
-        if n > max {
-            let message = format!("{n} triangles: at most {max} are supported");
-            return Err(Error::Scene { path: None, message });
+        let max = MAX_TRIANGLES;
+        for (n, what) in [(scene.triangles.len(), "triangles"), (scene.spheres.len(), "spheres")] {
+            if n > max {
+                let message = format!("{n} {what}: at most {max} are supported");
+                return Err(Error::Scene { path: None, message });
+            }
         }
         Ok(())
     }

@@ -176,7 +176,10 @@ impl Spheres {
     fn walk(&self, r: &Ray, stats: &mut TraceStats, mut visit: impl FnMut(u32) -> (f32, bool)) {
         let inv = Vec3::new(1.0 / r.dir.x, 1.0 / r.dir.y, 1.0 / r.dir.z);
         let mut t_max = r.t_max;
-        let mut stack = [0u32; MAX_DEPTH + 1];
+        // The builder keeps the triangles' tree within `MAX_DEPTH` levels for up to
+        // `MAX_TRIANGLES` primitives (SAH to depth 40, then halving); spheres are not capped by
+        // that limit, so the stack has room for twice as deep a tree (2^64 leaves and more).
+        let mut stack = [0u32; 2 * MAX_DEPTH + 2];
         let mut len = 1;
         while len > 0 {
             len -= 1;
@@ -196,8 +199,7 @@ impl Spheres {
                 }
             } else {
                 // The second child waits; the first (the next node) goes next. A path down
-                // the tree leaves at most one waiting sibling per level, and the tree is no
-                // deeper than `MAX_DEPTH`, so the stack cannot overflow.
+                // the tree leaves at most one waiting sibling per level.
                 stack[len] = node.index;
                 stack[len + 1] = i + 1;
                 len += 2;
