@@ -8,20 +8,24 @@ use crate::math::{Hit, Vec3};
 use crate::sampler::DrawBatch;
 use crate::scene::Material;
 
-/// How one queue entry of a chunk is shaded.
+/// How one queue entry of a chunk is shaded. Small on purpose: a chunk's surfaces for the
+/// scalar path wait in `ShadeScratch::surfaces`, so that the common lane entries do not move
+/// a whole `Surface` each.
+#[derive(Clone, Copy)]
 enum Entry {
     /// The ray left the scene.
     Miss,
     /// In the chunk's lanes, which reconstruct the surface themselves.
     Lane,
-    /// One by one, at this surface.
-    Scalar(Surface),
+    /// One by one, at the chunk's next surface.
+    Scalar,
 }
 
 /// Scratch space of the shade stage, reused across depths and tiles.
 #[derive(Default)]
 pub struct ShadeScratch {
     entries: Vec<Entry>,
+    surfaces: Vec<Surface>,
     lanes: DiffuseLanes,
     lane_out: DiffuseOutputs,
 }
@@ -51,6 +55,7 @@ pub fn shade(
     for start in (0..rays.len()).step_by(LANES) {
         let chunk = start..(start + LANES).min(rays.len());
         scratch.entries.clear();
+        scratch.surfaces.clear();
         scratch.lanes.len = 0;
         for q in chunk.clone() {
             let (ray, path) = (&rays.rays[q], rays.path[q]);
@@ -73,7 +78,10 @@ pub fn shade(
                         {
                             Entry::Miss
                         }
-                        None => Entry::Scalar(Surface::at(ctx.scene, ray, hit)),
+                        None => {
+                            scratch.surfaces.push(Surface::at(ctx.scene, ray, hit));
+                            Entry::Scalar
+                        }
                     }
                 }
             };
@@ -91,7 +99,7 @@ pub fn shade(
                 &mut scratch.lane_out,
             );
         }
-        let mut lane = 0;
+        let (mut lane, mut surfaces) = (0, scratch.surfaces.iter());
         for (q, entry) in chunk.zip(&scratch.entries) {
             let (ray, path) = (&rays.rays[q], rays.path[q]);
             match entry {
@@ -99,7 +107,8 @@ pub fn shade(
                     diffuse::queue_lane(&scratch.lane_out, lane, path, paths, &mut out);
                     lane += 1;
                 }
-                Entry::Scalar(s) => {
+                Entry::Scalar => {
+                    let s = surfaces.next().expect("one surface per scalar entry");
                     let numbers = (&layout, draws.of(q));
                     ctx.integrator.shade_hit(ctx, depth, ray, s, path, paths, numbers, &mut out);
                 }
