@@ -145,7 +145,7 @@ impl Accel {
             .collect();
         let (nodes, order) = match kind {
             AccelKind::Bvh => {
-                let built = build::build(&boxes, params);
+                let built = build::build_merged(&boxes, params, WIDE_LEAF.min(params.max_leaf));
                 (built.nodes, built.order)
             }
             AccelKind::BruteForce => {

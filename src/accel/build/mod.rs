@@ -123,7 +123,17 @@ impl Box4 {
 
 /// Builds a BVH over primitives with the given bounds. An empty input gives one empty leaf.
 pub fn build(bounds: &[Aabb], params: BuildParams) -> BuiltBvh {
+    build_merged(bounds, params, 0)
+}
+
+/// [`build`], except that every node of at most `merge` primitives becomes a leaf without
+/// looking for a split. For the wide tree (`collapse` with the same `merge`), which turns
+/// every binary subtree of at most `merge` triangles into one leaf anyway: its nodes, leaf
+/// ranges and boxes come out the same, only the order of the triangles inside a leaf differs,
+/// and the many small nodes near the leaves (most of the binary tree's nodes) cost nothing.
+pub(crate) fn build_merged(bounds: &[Aabb], params: BuildParams, merge: usize) -> BuiltBvh {
     assert!(params.bins >= 2 && params.bins <= binned_sah::MAX_BINS, "bins out of range");
+    assert!(merge <= params.max_leaf.max(1), "merged leaves hold at most max_leaf primitives");
     let mut prims: Vec<PrimRef> =
         bounds.iter().enumerate().map(|(i, b)| PrimRef::new(b, i as u32)).collect();
     let (root_bounds, root_centroids) = bounds_of(&prims);
@@ -132,11 +142,19 @@ pub fn build(bounds: &[Aabb], params: BuildParams) -> BuiltBvh {
     let mut nodes = Vec::with_capacity((2 * bounds.len()).max(1));
     let mut bins = binned_sah::Bins::new();
     let node = Node { bounds: root_bounds, centroids: root_centroids, first: 0, depth: 0 };
-    build_node(&mut nodes, &mut prims, node, &params, &mut bins);
+    let ctx = Ctx { params, merge };
+    build_node(&mut nodes, &mut prims, node, &ctx, &mut bins);
     // Give back the rest of the reservation so the memory the benchmark reports is what
     // traversal uses (shrinking a large block in place does not copy it).
     nodes.shrink_to_fit();
     BuiltBvh { nodes, order: prims.iter().map(PrimRef::index).collect() }
+}
+
+/// What every node of one build shares.
+struct Ctx {
+    params: BuildParams,
+    /// Nodes of at most this many primitives are leaves (`build_merged`).
+    merge: usize,
 }
 
 /// The box and the centroid (`centroid2`) box of `prims`.
@@ -163,9 +181,10 @@ fn build_node(
     nodes: &mut Vec<BvhNode>,
     prims: &mut [PrimRef],
     node: Node,
-    params: &BuildParams,
+    ctx: &Ctx,
     bins: &mut binned_sah::Bins,
 ) -> u32 {
+    let params = &ctx.params;
     let Node { bounds, centroids, first, depth } = node;
     let index = nodes.len();
     let count = prims.len();
@@ -173,7 +192,7 @@ fn build_node(
     let (min, max) =
         if aabb.is_empty() { ([0.0; 3], [0.0; 3]) } else { (aabb.min.into(), aabb.max.into()) };
     nodes.push(BvhNode { min, index: first as u32, max, count: count as u32 });
-    if count <= 1 {
+    if count <= 1 || count <= ctx.merge {
         return index as u32;
     }
 
@@ -218,7 +237,7 @@ fn build_node(
         // after this node, the right one after it, interior links shifted by where each lands.
         let build_alone = |prims: &mut [PrimRef], node: Node, bins: &mut binned_sah::Bins| {
             let mut sub = Vec::with_capacity(2 * prims.len());
-            build_node(&mut sub, prims, node, params, bins);
+            build_node(&mut sub, prims, node, ctx, bins);
             sub
         };
         let (l, r) = rayon::join(
@@ -230,8 +249,8 @@ fn build_node(
         append_shifted(nodes, &r);
         right_index
     } else {
-        build_node(nodes, left, left_node, params, bins);
-        build_node(nodes, right, right_node, params, bins)
+        build_node(nodes, left, left_node, ctx, bins);
+        build_node(nodes, right, right_node, ctx, bins)
     };
     nodes[index].index = right_index;
     nodes[index].count = 0;
