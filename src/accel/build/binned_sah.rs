@@ -36,20 +36,54 @@ impl Split {
     }
 }
 
-/// Entries of `Bins`: axis `a`, bin `k` is entry `a * MAX_BINS + k`. Room for a fourth axis
-/// makes it a power of two, so masking an index proves it in range to the compiler.
+/// Entries of one set of bins: axis `a`, bin `k` is entry `a * MAX_BINS + k`. Room for a
+/// fourth axis makes it a power of two, so masking an index proves it in range to the compiler.
 const BIN_SLOTS: usize = 4 * MAX_BINS;
 
-/// The bins of all three axes. Reused from node to node so that a node only resets the bins it
-/// uses, instead of building a fresh array.
+/// Sets of bins that consecutive primitives go to in turn (`Bins`).
+const SETS: usize = 4;
+
+/// Nodes of at least this many primitives bin into `SETS` sets, smaller ones into one (the
+/// reset and the merge of the extra sets would cost more than they save).
+const SETS_MIN: usize = 64;
+
+/// The bins of all three axes, in `SETS` copies. Neighbouring primitives in the array are
+/// neighbours in space and so mostly fall in the same bins; with one set, every primitive's
+/// update of a bin waits for the previous one's store to that bin (a chain through memory per
+/// axis). Dealing the primitives round the sets makes `SETS` independent chains; the sets are
+/// merged before the sweep, exactly (unions and sums), so the split does not change. Reused
+/// from node to node so that a node only resets the bins it uses.
 pub struct Bins {
-    boxes: [Box4; BIN_SLOTS],
-    counts: [u32; BIN_SLOTS],
+    boxes: [Box4; SETS * BIN_SLOTS],
+    counts: [u32; SETS * BIN_SLOTS],
 }
 
 impl Bins {
     pub fn new() -> Box<Bins> {
-        Box::new(Bins { boxes: [Box4::EMPTY; BIN_SLOTS], counts: [0; BIN_SLOTS] })
+        Box::new(Bins { boxes: [Box4::EMPTY; SETS * BIN_SLOTS], counts: [0; SETS * BIN_SLOTS] })
+    }
+}
+
+/// Adds `p` to its bin on each axis in the set starting at `set`.
+#[inline(always)]
+fn bin_prim(
+    boxes: &mut [Box4; SETS * BIN_SLOTS],
+    counts: &mut [u32; SETS * BIN_SLOTS],
+    set: usize,
+    p: &PrimRef,
+    (lo, scale, top): (Vec4, Vec4, Vec4),
+) {
+    // The bin of all three axes at once: clamping to [0, bins - 1] before truncating gives
+    // what truncating and then clamping gives (a NaN lane becomes 0, as `as usize` makes it),
+    // and the truncation is one vector instruction.
+    const AXIS_OFFSET: i32x4 = i32x4::new([0, MAX_BINS as i32, 2 * MAX_BINS as i32, 0]);
+    let t = ((p.centroid2() - lo) * scale).max(Vec4::ZERO).min(top);
+    let k = (f32x4::from(t.to_array()).fast_trunc_int() + AXIS_OFFSET).to_array();
+    for &k in &k[..3] {
+        // The mask changes nothing (k < 3 * MAX_BINS); it drops the bounds checks.
+        let k = set + (k as usize & (BIN_SLOTS - 1));
+        boxes[k] = boxes[k].grow(p);
+        counts[k] += 1;
     }
 }
 
@@ -73,26 +107,38 @@ pub fn find_split(
     }
     let scale =
         Vec4::select(extent.cmpgt(Vec4::ZERO), bins as f32 * (1.0 - 1e-6) / extent, Vec4::ZERO);
+    let map = (lo, scale, Vec4::splat((bins - 1) as f32));
 
     let Bins { boxes, counts } = bins_buf;
-    for axis in 0..3 {
-        let used = axis * MAX_BINS..axis * MAX_BINS + bins;
-        boxes[used.clone()].fill(Box4::EMPTY);
-        counts[used].fill(0);
+    let sets = if prims.len() >= SETS_MIN { SETS } else { 1 };
+    for set in 0..sets {
+        for axis in 0..3 {
+            let at = set * BIN_SLOTS + axis * MAX_BINS;
+            boxes[at..at + bins].fill(Box4::EMPTY);
+            counts[at..at + bins].fill(0);
+        }
     }
-    // The bin of all three axes at once: clamping to [0, bins - 1] before truncating gives
-    // what truncating and then clamping gives (a NaN lane becomes 0, as `as usize` makes it),
-    // and the truncation is one vector instruction.
-    let top = Vec4::splat((bins - 1) as f32);
-    let axis_offset = i32x4::from([0, MAX_BINS as i32, 2 * MAX_BINS as i32, 0]);
-    for p in prims {
-        let t = ((p.centroid2() - lo) * scale).max(Vec4::ZERO).min(top);
-        let k = (f32x4::from(t.to_array()).fast_trunc_int() + axis_offset).to_array();
-        for &k in &k[..3] {
-            // The mask changes nothing (k < 3 * MAX_BINS); it drops the bounds checks.
-            let k = k as usize & (BIN_SLOTS - 1);
-            boxes[k] = boxes[k].grow(p);
-            counts[k] += 1;
+    if sets == 1 {
+        for p in prims {
+            bin_prim(boxes, counts, 0, p, map);
+        }
+    } else {
+        let quads = prims.chunks_exact(SETS);
+        for p in quads.remainder() {
+            bin_prim(boxes, counts, 0, p, map);
+        }
+        for q in quads {
+            for (set, p) in q.iter().enumerate() {
+                bin_prim(boxes, counts, set * BIN_SLOTS, p, map);
+            }
+        }
+        for set in 1..SETS {
+            for axis in 0..3 {
+                for k in axis * MAX_BINS..axis * MAX_BINS + bins {
+                    boxes[k] = boxes[k].union(boxes[set * BIN_SLOTS + k]);
+                    counts[k] += counts[set * BIN_SLOTS + k];
+                }
+            }
         }
     }
 
