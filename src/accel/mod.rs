@@ -24,7 +24,7 @@ use rayon::prelude::*;
 use crate::geometry::prim;
 use crate::geometry::sphere::intersect_sphere;
 use crate::geometry::TriangleSoa;
-use crate::math::{Aabb, Hit, Ray};
+use crate::math::{Aabb, Hit, Ray, Vec3};
 use crate::scene::{Scene, Sphere};
 use crate::simd::{LaneWidth, Lanes, VFloat};
 use crate::{Error, Result};
@@ -137,26 +137,34 @@ impl Accel {
             panic!("{e}");
         }
         let t0 = Instant::now();
-        // Triangle boxes straight from the indexed mesh, in parallel (in the caller's rayon
-        // pool); the corners are read again, in leaf order, for the SoA store.
-        let boxes: Vec<Aabb> = (0..scene.triangles.len())
-            .into_par_iter()
-            .map(|i| Aabb::from_points(&scene.triangle(i)))
-            .collect();
-        let (nodes, order) = match kind {
+        let (nodes, order, tri_bounds) = match kind {
+            // Triangle boxes straight from the indexed mesh, in the builder's parallel pass
+            // (in the caller's rayon pool); the corners are read again, in leaf order, for the
+            // SoA store.
             AccelKind::Bvh => {
-                let built = build::build_merged(&boxes, params, WIDE_LEAF.min(params.max_leaf));
-                (built.nodes, built.order)
+                let merge = WIDE_LEAF.min(params.max_leaf);
+                let n = scene.triangles.len();
+                let built = build::build_merged(
+                    n,
+                    |i| Aabb::from_points(&scene.triangle(i)),
+                    params,
+                    merge,
+                );
+                (built.nodes, built.order, built.bounds)
             }
             AccelKind::BruteForce => {
-                let b = boxes.iter().fold(Aabb::EMPTY, |b, &t| b.union(t));
+                let b = (0..scene.triangles.len())
+                    .into_par_iter()
+                    .map(|i| Aabb::from_points(&scene.triangle(i)))
+                    .collect::<Vec<_>>()
+                    .into_iter()
+                    .fold(Aabb::EMPTY, |b, t| b.union(t));
                 let (min, max) =
                     if b.is_empty() { ([0.0; 3], [0.0; 3]) } else { (b.min.into(), b.max.into()) };
-                let n = boxes.len() as u32;
-                (build::flat_tree(n, MAX_LEAF as u32, min, max), (0..n).collect())
+                let n = scene.triangles.len() as u32;
+                (build::flat_tree(n, MAX_LEAF as u32, min, max), (0..n).collect(), b)
             }
         };
-        drop(boxes);
         let nodes = if order.is_empty() { Vec::new() } else { nodes };
         let mut wide_nodes = build::collapse(&nodes, WIDE_LEAF);
         drop(nodes);
@@ -169,7 +177,11 @@ impl Accel {
             wide_nodes,
             tris,
             spheres: scene.spheres.clone(),
-            bounds: scene.bounds(),
+            // `Scene::bounds` without its pass over every corner: the triangles' boxes are
+            // already united, the spheres are added the same way.
+            bounds: scene.spheres.iter().fold(tri_bounds, |b, s| {
+                b.grow(s.center - Vec3::splat(s.radius)).grow(s.center + Vec3::splat(s.radius))
+            }),
             build_time: t0.elapsed(),
             large: false,
         };

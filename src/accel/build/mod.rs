@@ -17,6 +17,7 @@ pub(crate) use collapse::collapse;
 pub(crate) use pack::pack_leaves;
 
 use glam::Vec4;
+use rayon::prelude::*;
 
 use crate::math::Aabb;
 
@@ -56,6 +57,8 @@ pub struct BuiltBvh {
     pub nodes: Vec<BvhNode>,
     /// Input primitive indices in leaf order: a leaf's `index .. index + count` range of this.
     pub order: Vec<u32>,
+    /// The union of the primitives' boxes (empty for no primitives).
+    pub bounds: Aabb,
 }
 
 /// A primitive as the builder sees it: its box (16-byte SIMD corners, so that growing a box
@@ -123,23 +126,37 @@ impl Box4 {
 
 /// Builds a BVH over primitives with the given bounds. An empty input gives one empty leaf.
 pub fn build(bounds: &[Aabb], params: BuildParams) -> BuiltBvh {
-    build_merged(bounds, params, 0)
+    build_merged(bounds.len(), |i| bounds[i], params, 0)
 }
 
-/// [`build`], except that every node of at most `merge` primitives becomes a leaf without
-/// looking for a split. For the wide tree (`collapse` with the same `merge`), which turns
-/// every binary subtree of at most `merge` triangles into one leaf anyway: its nodes, leaf
-/// ranges and boxes come out the same, only the order of the triangles inside a leaf differs,
-/// and the many small nodes near the leaves (most of the binary tree's nodes) cost nothing.
-pub(crate) fn build_merged(bounds: &[Aabb], params: BuildParams, merge: usize) -> BuiltBvh {
+/// [`build`] over the `count` primitives whose boxes `box_of` gives (computed in parallel, in
+/// the caller's rayon pool), except that every node of at most `merge` primitives becomes a
+/// leaf without looking for a split. For the wide tree (`collapse` with the same `merge`),
+/// which turns every binary subtree of at most `merge` triangles into one leaf anyway: its
+/// nodes, leaf ranges and boxes come out the same, only the order of the triangles inside a
+/// leaf differs, and the many small nodes near the leaves (most of the binary tree's nodes)
+/// cost nothing.
+pub(crate) fn build_merged(
+    count: usize,
+    box_of: impl Fn(usize) -> Aabb + Sync,
+    params: BuildParams,
+    merge: usize,
+) -> BuiltBvh {
     assert!(params.bins >= 2 && params.bins <= binned_sah::MAX_BINS, "bins out of range");
     assert!(merge <= params.max_leaf.max(1), "merged leaves hold at most max_leaf primitives");
     let mut prims: Vec<PrimRef> =
-        bounds.iter().enumerate().map(|(i, b)| PrimRef::new(b, i as u32)).collect();
-    let (root_bounds, root_centroids) = bounds_of(&prims);
+        (0..count).into_par_iter().map(|i| PrimRef::new(&box_of(i), i as u32)).collect();
+    // The root's boxes over fixed chunks, combined in order: the same floats whatever the
+    // thread count (the sign of a zero can depend on the order of a min).
+    let (root_bounds, root_centroids) = prims
+        .par_chunks(BOUNDS_CHUNK)
+        .map(bounds_of)
+        .collect::<Vec<_>>()
+        .into_iter()
+        .fold((Box4::EMPTY, Box4::EMPTY), |(b, c), (cb, cc)| (b.union(cb), c.union(cc)));
     // A binary tree over n primitives has at most 2n - 1 nodes, so the array never grows (and
     // is never copied) during the build.
-    let mut nodes = Vec::with_capacity((2 * bounds.len()).max(1));
+    let mut nodes = Vec::with_capacity((2 * count).max(1));
     let mut bins = binned_sah::Bins::new();
     let node = Node { bounds: root_bounds, centroids: root_centroids, first: 0, depth: 0 };
     let ctx = Ctx { params, merge };
@@ -147,8 +164,15 @@ pub(crate) fn build_merged(bounds: &[Aabb], params: BuildParams, merge: usize) -
     // Give back the rest of the reservation so the memory the benchmark reports is what
     // traversal uses (shrinking a large block in place does not copy it).
     nodes.shrink_to_fit();
-    BuiltBvh { nodes, order: prims.iter().map(PrimRef::index).collect() }
+    BuiltBvh {
+        nodes,
+        order: prims.iter().map(PrimRef::index).collect(),
+        bounds: root_bounds.aabb(),
+    }
 }
+
+/// Primitives per chunk of the root's bounds pass.
+const BOUNDS_CHUNK: usize = 16 * 1024;
 
 /// What every node of one build shares.
 struct Ctx {
