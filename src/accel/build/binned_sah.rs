@@ -5,7 +5,7 @@
 use glam::Vec4;
 use wide::{f32x4, i32x4};
 
-use super::{Box4, BuildParams, PrimRef};
+use super::{Box4, Box8, BuildParams, PrimRef};
 
 /// Upper bound on `BuildParams::bins` (the size of the scratch arrays).
 pub const MAX_BINS: usize = 16;
@@ -20,8 +20,8 @@ pub struct Split {
     pub cost: f32,
     /// Bounds of each side: the union of its bins, i.e. exactly the union of its primitives'
     /// boxes, so the children need no pass of their own to find them.
-    pub left: Box4,
-    pub right: Box4,
+    pub left: Box8,
+    pub right: Box8,
     lo: f32,
     scale: f32,
 }
@@ -54,20 +54,20 @@ const SETS_MIN: usize = 64;
 /// merged before the sweep, exactly (unions and sums), so the split does not change. Reused
 /// from node to node so that a node only resets the bins it uses.
 pub struct Bins {
-    boxes: [Box4; SETS * BIN_SLOTS],
+    boxes: [Box8; SETS * BIN_SLOTS],
     counts: [u32; SETS * BIN_SLOTS],
 }
 
 impl Bins {
     pub fn new() -> Box<Bins> {
-        Box::new(Bins { boxes: [Box4::EMPTY; SETS * BIN_SLOTS], counts: [0; SETS * BIN_SLOTS] })
+        Box::new(Bins { boxes: [Box8::EMPTY; SETS * BIN_SLOTS], counts: [0; SETS * BIN_SLOTS] })
     }
 }
 
 /// Adds `p` to its bin on each axis in the set starting at `set`.
 #[inline(always)]
 fn bin_prim(
-    boxes: &mut [Box4; SETS * BIN_SLOTS],
+    boxes: &mut [Box8; SETS * BIN_SLOTS],
     counts: &mut [u32; SETS * BIN_SLOTS],
     set: usize,
     p: &PrimRef,
@@ -82,7 +82,7 @@ fn bin_prim(
     for &k in &k[..3] {
         // The mask changes nothing (k < 3 * MAX_BINS); it drops the bounds checks.
         let k = set + (k as usize & (BIN_SLOTS - 1));
-        boxes[k] = boxes[k].grow(p);
+        boxes[k] = boxes[k].union(p.0);
         counts[k] += 1;
     }
 }
@@ -91,7 +91,7 @@ fn bin_prim(
 /// bounds the primitives' `centroid2` (twice the centroid).
 pub fn find_split(
     prims: &[PrimRef],
-    bounds: Box4,
+    bounds: Box8,
     centroids: Box4,
     params: &BuildParams,
     bins_buf: &mut Bins,
@@ -114,7 +114,7 @@ pub fn find_split(
     for set in 0..sets {
         for axis in 0..3 {
             let at = set * BIN_SLOTS + axis * MAX_BINS;
-            boxes[at..at + bins].fill(Box4::EMPTY);
+            boxes[at..at + bins].fill(Box8::EMPTY);
             counts[at..at + bins].fill(0);
         }
     }
@@ -150,14 +150,14 @@ pub fn find_split(
         // Sweep from the right to get the area and count of every right side.
         let mut right_area = [0.0f32; MAX_BINS];
         let mut right_count = [0u32; MAX_BINS];
-        let (mut acc, mut n) = (Box4::EMPTY, 0u32);
+        let (mut acc, mut n) = (Box8::EMPTY, 0u32);
         for k in (1..bins).rev() {
             acc = acc.union(boxes[k]);
             n += counts[k];
             right_area[k] = acc.half_area();
             right_count[k] = n;
         }
-        let (mut acc, mut n) = (Box4::EMPTY, 0u32);
+        let (mut acc, mut n) = (Box8::EMPTY, 0u32);
         for k in 1..bins {
             acc = acc.union(boxes[k - 1]);
             n += counts[k - 1];
@@ -174,8 +174,8 @@ pub fn find_split(
     }
     let (axis, bin, cost) = best?;
     let boxes = &boxes[axis * MAX_BINS..axis * MAX_BINS + bins];
-    let left = boxes[..bin].iter().fold(Box4::EMPTY, |a, &b| a.union(b));
-    let right = boxes[bin..].iter().fold(Box4::EMPTY, |a, &b| a.union(b));
+    let left = boxes[..bin].iter().fold(Box8::EMPTY, |a, &b| a.union(b));
+    let right = boxes[bin..].iter().fold(Box8::EMPTY, |a, &b| a.union(b));
     Some(Split { axis, bin, cost, left, right, lo: lo[axis], scale: scale[axis] })
 }
 

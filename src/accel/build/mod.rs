@@ -18,6 +18,7 @@ pub(crate) use pack::pack_leaves;
 
 use glam::Vec4;
 use rayon::prelude::*;
+use wide::f32x8;
 
 use crate::math::Aabb;
 
@@ -61,32 +62,71 @@ pub struct BuiltBvh {
     pub bounds: Aabb,
 }
 
-/// A primitive as the builder sees it: its box (16-byte SIMD corners, so that growing a box
-/// is two vector instructions) and its index in the input, in the spare lane of `min`.
+/// A box as one 8-lane vector: the lower corner in lanes 0..3 and the upper corner negated
+/// in lanes 4..7 (lanes 3 and 7 spare). With the upper corner negated, the union of two boxes
+/// is one 8-lane `min`, so binning a primitive is one load, one `min` and one store per axis.
+/// Negation is exact, so the boxes are the same floats as with a separate `max`.
 #[derive(Debug, Clone, Copy)]
-struct PrimRef {
-    min: Vec4,
-    max: Vec4,
+struct Box8(f32x8);
+
+impl Box8 {
+    const EMPTY: Box8 = Box8(f32x8::new([f32::INFINITY; 8]));
+
+    fn new(b: &Aabb, spare: f32) -> Box8 {
+        let (l, u) = (b.min, b.max);
+        Box8(f32x8::new([l.x, l.y, l.z, spare, -u.x, -u.y, -u.z, 0.0]))
+    }
+
+    #[inline(always)]
+    fn union(self, o: Box8) -> Box8 {
+        Box8(self.0.fast_min(o.0))
+    }
+
+    #[inline(always)]
+    fn lower(&self) -> Vec4 {
+        Vec4::from_slice(&self.0.as_array()[..4])
+    }
+
+    #[inline(always)]
+    fn neg_upper(&self) -> Vec4 {
+        Vec4::from_slice(&self.0.as_array()[4..])
+    }
+
+    fn aabb(self) -> Aabb {
+        Aabb { min: self.lower().truncate(), max: (-self.neg_upper()).truncate() }
+    }
+
+    /// Half the surface area, 0 for an empty box.
+    #[inline(always)]
+    fn half_area(self) -> f32 {
+        let e = (-self.neg_upper() - self.lower()).max(Vec4::ZERO);
+        e.x * e.y + e.y * e.z + e.z * e.x
+    }
 }
+
+/// A primitive as the builder sees it: its box, with its index in the input in the spare lane
+/// of the lower corner.
+#[derive(Debug, Clone, Copy)]
+struct PrimRef(Box8);
 
 impl PrimRef {
     fn new(b: &Aabb, index: u32) -> PrimRef {
-        PrimRef { min: b.min.extend(f32::from_bits(index)), max: b.max.extend(0.0) }
+        PrimRef(Box8::new(b, f32::from_bits(index)))
     }
 
     #[inline(always)]
     fn index(&self) -> u32 {
-        self.min.w.to_bits()
+        self.0 .0.as_array()[3].to_bits()
     }
 
     /// Twice the centroid (w lane meaningless): binning only needs it up to a common scale.
     #[inline(always)]
     fn centroid2(&self) -> Vec4 {
-        self.min + self.max
+        self.0.lower() - self.0.neg_upper()
     }
 }
 
-/// A box with SIMD corners; only x, y, z mean anything.
+/// A box of points (the centroids) with SIMD corners; only x, y, z mean anything.
 #[derive(Debug, Clone, Copy)]
 struct Box4 {
     min: Vec4,
@@ -98,11 +138,6 @@ impl Box4 {
         Box4 { min: Vec4::splat(f32::INFINITY), max: Vec4::splat(f32::NEG_INFINITY) };
 
     #[inline(always)]
-    fn grow(self, p: &PrimRef) -> Box4 {
-        Box4 { min: self.min.min(p.min), max: self.max.max(p.max) }
-    }
-
-    #[inline(always)]
     fn grow_point(self, p: Vec4) -> Box4 {
         Box4 { min: self.min.min(p), max: self.max.max(p) }
     }
@@ -110,17 +145,6 @@ impl Box4 {
     #[inline(always)]
     fn union(self, o: Box4) -> Box4 {
         Box4 { min: self.min.min(o.min), max: self.max.max(o.max) }
-    }
-
-    fn aabb(self) -> Aabb {
-        Aabb { min: self.min.truncate(), max: self.max.truncate() }
-    }
-
-    /// Half the surface area, 0 for an empty box.
-    #[inline(always)]
-    fn half_area(self) -> f32 {
-        let e = (self.max - self.min).max(Vec4::ZERO);
-        e.x * e.y + e.y * e.z + e.z * e.x
     }
 }
 
@@ -153,7 +177,7 @@ pub(crate) fn build_merged(
         .map(bounds_of)
         .collect::<Vec<_>>()
         .into_iter()
-        .fold((Box4::EMPTY, Box4::EMPTY), |(b, c), (cb, cc)| (b.union(cb), c.union(cc)));
+        .fold((Box8::EMPTY, Box4::EMPTY), |(b, c), (cb, cc)| (b.union(cb), c.union(cc)));
     // A binary tree over n primitives has at most 2n - 1 nodes, so the array never grows (and
     // is never copied) during the build.
     let mut nodes = Vec::with_capacity((2 * count).max(1));
@@ -182,17 +206,17 @@ struct Ctx {
 }
 
 /// The box and the centroid (`centroid2`) box of `prims`.
-fn bounds_of(prims: &[PrimRef]) -> (Box4, Box4) {
+fn bounds_of(prims: &[PrimRef]) -> (Box8, Box4) {
     prims
         .iter()
-        .fold((Box4::EMPTY, Box4::EMPTY), |(b, c), p| (b.grow(p), c.grow_point(p.centroid2())))
+        .fold((Box8::EMPTY, Box4::EMPTY), |(b, c), p| (b.union(p.0), c.grow_point(p.centroid2())))
 }
 
 /// What a node knows before it is built: its bounds, which its parent's split found, and
 /// where it sits.
 #[derive(Clone, Copy)]
 struct Node {
-    bounds: Box4,
+    bounds: Box8,
     centroids: Box4,
     /// Its first primitive's position in the final order.
     first: usize,
