@@ -105,18 +105,26 @@ impl Box8 {
 }
 
 /// A primitive as the builder sees it: its box, with its index in the input in the spare lane
-/// of the lower corner.
+/// of the lower corner. The index rides in the mantissa of a float with a fixed exponent
+/// (`INDEX_TAG`), in [2, 8): the spare lane goes through the binning arithmetic with the
+/// others, and an index stored as raw bits would be a subnormal float there, which costs a
+/// microcode assist per operation.
 #[derive(Debug, Clone, Copy)]
 struct PrimRef(Box8);
 
+/// Exponent bits of the index lane; indices take the 24 bits below (`MAX_PRIMS`).
+const INDEX_TAG: u32 = 0x4000_0000;
+/// Most primitives one build takes (`wide_node::MAX_TRIANGLES` is no more).
+const MAX_PRIMS: usize = 1 << 24;
+
 impl PrimRef {
     fn new(b: &Aabb, index: u32) -> PrimRef {
-        PrimRef(Box8::new(b, f32::from_bits(index)))
+        PrimRef(Box8::new(b, f32::from_bits(INDEX_TAG | index)))
     }
 
     #[inline(always)]
     fn index(&self) -> u32 {
-        self.0 .0.as_array()[3].to_bits()
+        self.0 .0.as_array()[3].to_bits() & (MAX_PRIMS as u32 - 1)
     }
 
     /// Twice the centroid (w lane meaningless): binning only needs it up to a common scale.
@@ -168,6 +176,7 @@ pub(crate) fn build_merged(
 ) -> BuiltBvh {
     assert!(params.bins >= 2 && params.bins <= binned_sah::MAX_BINS, "bins out of range");
     assert!(merge <= params.max_leaf.max(1), "merged leaves hold at most max_leaf primitives");
+    assert!(count <= MAX_PRIMS, "at most {MAX_PRIMS} primitives");
     let mut prims: Vec<PrimRef> =
         (0..count).into_par_iter().map(|i| PrimRef::new(&box_of(i), i as u32)).collect();
     // The root's boxes over fixed chunks, combined in order: the same floats whatever the
