@@ -171,8 +171,6 @@ impl Accel {
         wide_nodes.shrink_to_fit();
         let slots = build::pack_leaves(&mut wide_nodes, &order);
         let tris = TriangleSoa::from_slots(|i| scene.triangle(i), &slots);
-        hugepage::advise(&wide_nodes);
-        hugepage::advise(tris.blocks());
         let mut accel = Accel {
             wide_nodes,
             tris,
@@ -182,10 +180,19 @@ impl Accel {
             bounds: scene.spheres.iter().fold(tri_bounds, |b, s| {
                 b.grow(s.center - Vec3::splat(s.radius)).grow(s.center + Vec3::splat(s.radius))
             }),
-            build_time: t0.elapsed(),
+            build_time: Duration::ZERO,
             large: false,
         };
         accel.large = accel.memory_bytes() > traverse_single::STREAM_LARGE_BYTES;
+        // Huge pages only for a structure that outgrows the caches, where the TLB misses
+        // they save were measured (PERF.md, "Large scenes"). Collapsing the pages of a few
+        // megabytes copies them and took 1 to 14 ms per build on maxplanck (3.2 MB), more
+        // than the rest of its build, for traversal within noise (PERF.md, "Build speed").
+        if accel.large {
+            hugepage::advise(&accel.wide_nodes);
+            hugepage::advise(accel.tris.blocks());
+        }
+        accel.build_time = t0.elapsed();
         accel
     }
 
