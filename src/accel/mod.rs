@@ -41,6 +41,11 @@ pub use wide_node::{WideNode, MAX_LEAF, MAX_TRIANGLES};
 /// single-ray leaf test takes 8 at once. Measured (PERF.md, "Wide BVH").
 pub(crate) const WIDE_LEAF: usize = 8;
 
+/// Bytes of structure per triangle, a lower bound for the estimate of `large` before the
+/// build (measured 59.6 to 63.0 on the course scenes and the 1M tori, `bench`'s
+/// bytes_per_triangle).
+const EST_BYTES_PER_TRIANGLE: usize = 48;
+
 /// Which structure to build.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum AccelKind {
@@ -166,11 +171,26 @@ impl Accel {
             }
         };
         let nodes = if order.is_empty() { Vec::new() } else { nodes };
-        let mut wide_nodes = build::collapse(&nodes, WIDE_LEAF);
+        // A structure that will outgrow the caches (`large`, estimated from the triangle
+        // count) gets huge pages for its two big arrays before anything touches them: pages
+        // faulted in after the advice are huge from the start, where collapsing touched pages
+        // afterwards copies them (25 to 130 ms on the 1M tori in a fresh process).
+        let huge = order.len() * EST_BYTES_PER_TRIANGLE > traverse_single::STREAM_LARGE_BYTES;
+        let mut wide_nodes = Vec::new();
+        if huge {
+            wide_nodes.reserve_exact(build::wide_capacity(&nodes));
+            hugepage::advise(wide_nodes.spare_capacity_mut());
+        }
+        let mut wide_nodes = build::collapse_into(wide_nodes, &nodes, WIDE_LEAF);
         drop(nodes);
         wide_nodes.shrink_to_fit();
         let slots = build::pack_leaves(&mut wide_nodes, &order);
-        let tris = TriangleSoa::from_slots(|i| scene.triangle(i), &slots);
+        let mut blocks = Vec::new();
+        if huge {
+            blocks.reserve_exact(slots.len().div_ceil(crate::geometry::triangles::LANES));
+            hugepage::advise(blocks.spare_capacity_mut());
+        }
+        let tris = TriangleSoa::from_slots_in(blocks, |i| scene.triangle(i), &slots);
         let mut accel = Accel {
             wide_nodes,
             tris,
@@ -188,6 +208,7 @@ impl Accel {
         // they save were measured (PERF.md, "Large scenes"). Collapsing the pages of a few
         // megabytes copies them and took 1 to 14 ms per build on maxplanck (3.2 MB), more
         // than the rest of its build, for traversal within noise (PERF.md, "Build speed").
+        // After the advice above this only collapses what was not huge already.
         if accel.large {
             hugepage::advise(&accel.wide_nodes);
             hugepage::advise(accel.tris.blocks());

@@ -13,7 +13,9 @@ mod binned_sah;
 mod collapse;
 mod pack;
 
+#[cfg(test)]
 pub(crate) use collapse::collapse;
+pub(crate) use collapse::{collapse_into, wide_capacity};
 pub(crate) use pack::pack_leaves;
 
 use glam::Vec4;
