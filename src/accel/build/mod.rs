@@ -201,7 +201,7 @@ pub(crate) fn build_merged(
     nodes.shrink_to_fit();
     BuiltBvh {
         nodes,
-        order: prims.iter().map(PrimRef::index).collect(),
+        order: prims.par_iter().map(PrimRef::index).collect(),
         bounds: root_bounds.aabb(),
     }
 }
