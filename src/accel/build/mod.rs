@@ -356,6 +356,31 @@ fn append_shifted(nodes: &mut Vec<BvhNode>, sub: &[BvhNode]) {
 mod tests {
     use super::*;
 
+    /// The tree and the primitive order do not depend on the thread count: more primitives
+    /// than `PARALLEL_MIN` and `BOUNDS_CHUNK`, so subtrees and the root's bounds run in
+    /// parallel, and both the full tree and the merged one.
+    #[test]
+    fn same_tree_at_one_and_two_threads() {
+        use crate::math::Vec3;
+        let mut rng = crate::sampler::Pcg32::new(7, 8);
+        let boxes: Vec<Aabb> = (0..3 * PARALLEL_MIN.max(BOUNDS_CHUNK))
+            .map(|_| {
+                let c = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 10.0;
+                Aabb::from_points(&[c, c + Vec3::splat(0.05 * rng.next_f32())])
+            })
+            .collect();
+        let built = |threads: usize, merge: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| build_merged(boxes.len(), |i| boxes[i], BuildParams::default(), merge))
+        };
+        for merge in [0, 8] {
+            let (one, two) = (built(1, merge), built(2, merge));
+            assert_eq!(one.nodes, two.nodes, "merge {merge}");
+            assert_eq!(one.order, two.order, "merge {merge}");
+            assert_eq!(one.bounds, two.bounds, "merge {merge}");
+        }
+    }
+
     /// The brute-force tree: leaves of at most `leaf` tile the primitives in order, every
     /// interior node links its second child correctly, and every box is the given one.
     #[test]
