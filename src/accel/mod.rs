@@ -179,7 +179,7 @@ impl Accel {
         let mut wide_nodes = Vec::new();
         if huge {
             wide_nodes.reserve_exact(build::wide_capacity(&nodes));
-            hugepage::advise(wide_nodes.spare_capacity_mut());
+            hugepage::prefer(wide_nodes.spare_capacity_mut());
         }
         let mut wide_nodes = build::collapse_into(wide_nodes, &nodes, WIDE_LEAF);
         drop(nodes);
@@ -188,7 +188,7 @@ impl Accel {
         let mut blocks = Vec::new();
         if huge {
             blocks.reserve_exact(slots.len().div_ceil(crate::geometry::triangles::LANES));
-            hugepage::advise(blocks.spare_capacity_mut());
+            hugepage::prefer(blocks.spare_capacity_mut());
         }
         let tris = TriangleSoa::from_slots_in(blocks, |i| scene.triangle(i), &slots);
         let mut accel = Accel {
