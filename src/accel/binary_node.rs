@@ -1,7 +1,8 @@
 //! One node of the binary SAH tree, named by a path of L/R steps from the root: what the
-//! write-up's BVH previews show (`--bvh-node`). The tree is the one `Accel::build` collapses
-//! into wide nodes (same primitive boxes, same `BuildParams`), built again here because the
-//! accel drops it once collapsed.
+//! write-up's BVH previews show (`--bvh-node`). The tree is the full binary SAH tree over the
+//! same primitive boxes with the same `BuildParams`, split down to single primitives; it
+//! collapses to the same wide tree as the one `Accel::build` makes (which stops splitting at
+//! nodes small enough to be one wide leaf, `build::build_merged`).
 
 use rayon::prelude::*;
 

@@ -17,23 +17,39 @@
 /// neighbouring allocations in the same huge page are unaffected; unmapped parts of the
 /// widened range make the call fail for them alone.
 pub fn advise<T>(v: &[T]) {
+    #[cfg(target_os = "linux")]
+    advise_with(v, &[MADV_HUGEPAGE, MADV_COLLAPSE]);
+    #[cfg(not(target_os = "linux"))]
+    let _ = v;
+}
+
+/// Asks for 2 MiB pages for memory not touched yet (a vector's spare capacity): pages faulted
+/// in afterwards are huge from the start, with no copy. Nothing is populated now (unlike
+/// `advise`'s collapse, which would allocate the whole range, used or not).
+pub fn prefer<T>(v: &[T]) {
+    #[cfg(target_os = "linux")]
+    advise_with(v, &[MADV_HUGEPAGE]);
+    #[cfg(not(target_os = "linux"))]
+    let _ = v;
+}
+
+#[cfg(target_os = "linux")]
+fn advise_with<T>(v: &[T], advices: &[i32]) {
     let bytes = std::mem::size_of_val(v);
     if bytes < HUGE / 2 {
         return; // small arrays sit in a few cache-resident pages anyway
     }
-    #[cfg(target_os = "linux")]
-    {
-        let start = v.as_ptr() as usize & !(HUGE - 1);
-        let end = (v.as_ptr() as usize + bytes).next_multiple_of(HUGE);
-        for advice in [MADV_HUGEPAGE, MADV_COLLAPSE] {
-            // SAFETY: madvise with these two advices does not change the contents or the
-            // mapping of the range, only the size of the pages behind it; the range is
-            // page-aligned, and failures are reported through the return value, ignored here.
-            unsafe { madvise(start as *mut std::ffi::c_void, end - start, advice) };
-        }
+    let start = v.as_ptr() as usize & !(HUGE - 1);
+    let end = (v.as_ptr() as usize + bytes).next_multiple_of(HUGE);
+    for &advice in advices {
+        // SAFETY: madvise with MADV_HUGEPAGE or MADV_COLLAPSE does not change the contents or
+        // the mapping of the range, only the size of the pages behind it; the range is
+        // page-aligned, and failures are reported through the return value, ignored here.
+        unsafe { madvise(start as *mut std::ffi::c_void, end - start, advice) };
     }
 }
 
+#[cfg(target_os = "linux")]
 const HUGE: usize = 2 << 20;
 
 #[cfg(target_os = "linux")]

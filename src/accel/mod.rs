@@ -23,7 +23,7 @@ use std::time::{Duration, Instant};
 use rayon::prelude::*;
 
 use crate::geometry::TriangleSoa;
-use crate::math::{Aabb, Hit, Ray};
+use crate::math::{Aabb, Hit, Ray, Vec3};
 use crate::scene::Scene;
 use crate::simd::{LaneWidth, Lanes, VFloat};
 use crate::{Error, Result};
@@ -40,6 +40,11 @@ pub use wide_node::{WideNode, MAX_LEAF, MAX_TRIANGLES};
 /// the binary leaves). The binary SAH makes leaves of 1.7 triangles on average; the
 /// single-ray leaf test takes 8 at once. Measured (PERF.md, "Wide BVH").
 pub(crate) const WIDE_LEAF: usize = 8;
+
+/// Bytes of structure per triangle, a lower bound for the estimate of `large` before the
+/// build (measured 59.6 to 63.0 on the course scenes and the 1M tori, `bench`'s
+/// bytes_per_triangle).
+const EST_BYTES_PER_TRIANGLE: usize = 48;
 
 /// Which structure to build.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -141,43 +146,79 @@ impl Accel {
             panic!("{e}");
         }
         let t0 = Instant::now();
-        // Triangle boxes straight from the indexed mesh, in parallel (in the caller's rayon
-        // pool); the corners are read again, in leaf order, for the SoA store.
-        let boxes: Vec<Aabb> = (0..scene.triangles.len())
-            .into_par_iter()
-            .map(|i| Aabb::from_points(&scene.triangle(i)))
-            .collect();
-        let (nodes, order) = match kind {
+        let (nodes, order, tri_bounds) = match kind {
+            // Triangle boxes straight from the indexed mesh, in the builder's parallel pass
+            // (in the caller's rayon pool); the corners are read again, in leaf order, for the
+            // SoA store.
             AccelKind::Bvh => {
-                let built = build::build(&boxes, params);
-                (built.nodes, built.order)
+                let merge = WIDE_LEAF.min(params.max_leaf);
+                let n = scene.triangles.len();
+                let built = build::build_merged(
+                    n,
+                    |i| Aabb::from_points(&scene.triangle(i)),
+                    params,
+                    merge,
+                );
+                (built.nodes, built.order, built.bounds)
             }
             AccelKind::BruteForce => {
-                let b = boxes.iter().fold(Aabb::EMPTY, |b, &t| b.union(t));
+                let b = (0..scene.triangles.len())
+                    .into_par_iter()
+                    .map(|i| Aabb::from_points(&scene.triangle(i)))
+                    .collect::<Vec<_>>()
+                    .into_iter()
+                    .fold(Aabb::EMPTY, |b, t| b.union(t));
                 let (min, max) =
                     if b.is_empty() { ([0.0; 3], [0.0; 3]) } else { (b.min.into(), b.max.into()) };
-                let n = boxes.len() as u32;
-                (build::flat_tree(n, MAX_LEAF as u32, min, max), (0..n).collect())
+                let n = scene.triangles.len() as u32;
+                (build::flat_tree(n, MAX_LEAF as u32, min, max), (0..n).collect(), b)
             }
         };
-        drop(boxes);
         let nodes = if order.is_empty() { Vec::new() } else { nodes };
-        let mut wide_nodes = build::collapse(&nodes, WIDE_LEAF);
+        // A structure that will outgrow the caches (`large`, estimated from the triangle
+        // count) gets huge pages for its two big arrays before anything touches them: pages
+        // faulted in after the advice are huge from the start, where collapsing touched pages
+        // afterwards copies them (25 to 130 ms on the 1M tori in a fresh process).
+        let huge = order.len() * EST_BYTES_PER_TRIANGLE > traverse_single::STREAM_LARGE_BYTES;
+        let mut wide_nodes = Vec::new();
+        if huge {
+            wide_nodes.reserve_exact(build::wide_capacity(&nodes));
+            hugepage::prefer(wide_nodes.spare_capacity_mut());
+        }
+        let mut wide_nodes = build::collapse_into(wide_nodes, &nodes, WIDE_LEAF);
         drop(nodes);
         wide_nodes.shrink_to_fit();
         let slots = build::pack_leaves(&mut wide_nodes, &order);
-        let tris = TriangleSoa::from_slots(|i| scene.triangle(i), &slots);
-        hugepage::advise(&wide_nodes);
-        hugepage::advise(tris.blocks());
+        let mut blocks = Vec::new();
+        if huge {
+            blocks.reserve_exact(slots.len().div_ceil(crate::geometry::triangles::LANES));
+            hugepage::prefer(blocks.spare_capacity_mut());
+        }
+        let tris = TriangleSoa::from_slots_in(blocks, |i| scene.triangle(i), &slots);
+        // `Scene::bounds` without its pass over every corner: the triangles' boxes are
+        // already united, the spheres are added the same way.
+        let bounds = scene.spheres.iter().fold(tri_bounds, |b, s| {
+            b.grow(s.center - Vec3::splat(s.radius)).grow(s.center + Vec3::splat(s.radius))
+        });
         let mut accel = Accel {
             wide_nodes,
             tris,
-            spheres: Spheres::new(&scene.spheres, scene.bounds().diagonal()),
-            bounds: scene.bounds(),
-            build_time: t0.elapsed(),
+            spheres: Spheres::new(&scene.spheres, bounds.diagonal()),
+            bounds,
+            build_time: Duration::ZERO,
             large: false,
         };
         accel.large = accel.memory_bytes() > traverse_single::STREAM_LARGE_BYTES;
+        // Huge pages only for a structure that outgrows the caches, where the TLB misses
+        // they save were measured (PERF.md, "Large scenes"). Collapsing the pages of a few
+        // megabytes copies them and took 1 to 14 ms per build on maxplanck (3.2 MB), more
+        // than the rest of its build, for traversal within noise (PERF.md, "Build speed").
+        // After the advice above this only collapses what was not huge already.
+        if accel.large {
+            hugepage::advise(&accel.wide_nodes);
+            hugepage::advise(accel.tris.blocks());
+        }
+        accel.build_time = t0.elapsed();
         accel
     }
 

@@ -14,6 +14,7 @@
 //! blocks"). Slots no leaf uses are degenerate all-zero triangles: det = 0, never a hit.
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 /// Lanes of the widest SIMD triangle test, and slots per block.
 pub const LANES: usize = 8;
@@ -57,23 +58,40 @@ pub struct TriangleSoa {
 impl TriangleSoa {
     /// Stores triangle `corners(p)` in slot `i` for every `p = slots[i]` other than
     /// `NO_PRIM`; the other slots stay empty.
-    pub(crate) fn from_slots(corners: impl Fn(usize) -> [Vec3; 3], slots: &[u32]) -> TriangleSoa {
-        let mut blocks = vec![TriangleBlock::EMPTY; slots.len().div_ceil(LANES)];
-        let mut len = 0;
-        for (i, &p) in slots.iter().enumerate() {
-            if p == NO_PRIM {
-                continue;
-            }
-            let [a, b, c] = corners(p as usize);
-            let (block, lane) = (&mut blocks[i / LANES], i % LANES);
-            for (row, v) in [(&mut block.v0, a), (&mut block.e1, b - a), (&mut block.e2, c - a)] {
-                for k in 0..3 {
-                    row[k][lane] = v[k];
+    #[cfg(test)]
+    pub(crate) fn from_slots(
+        corners: impl Fn(usize) -> [Vec3; 3] + Sync,
+        slots: &[u32],
+    ) -> TriangleSoa {
+        TriangleSoa::from_slots_in(Vec::new(), corners, slots)
+    }
+
+    /// [`from_slots`](TriangleSoa::from_slots) into `blocks` (emptied first): a caller that
+    /// gave its capacity huge pages before anything touched it keeps them. Blocks are filled
+    /// in parallel (in the caller's rayon pool), each from its own eight slots.
+    pub(crate) fn from_slots_in(
+        mut blocks: Vec<TriangleBlock>,
+        corners: impl Fn(usize) -> [Vec3; 3] + Sync,
+        slots: &[u32],
+    ) -> TriangleSoa {
+        blocks.clear();
+        // Exactly: `memory_bytes` (and `Accel`'s choice of traversal) counts the capacity.
+        blocks.reserve_exact(slots.len().div_ceil(LANES));
+        blocks.par_extend(slots.par_chunks(LANES).map(|slots| {
+            let mut block = TriangleBlock::EMPTY;
+            for (lane, &p) in slots.iter().enumerate().filter(|(_, &p)| p != NO_PRIM) {
+                let [a, b, c] = corners(p as usize);
+                for (row, v) in [(&mut block.v0, a), (&mut block.e1, b - a), (&mut block.e2, c - a)]
+                {
+                    for k in 0..3 {
+                        row[k][lane] = v[k];
+                    }
                 }
+                block.prim[lane] = p;
             }
-            block.prim[lane] = p;
-            len += 1;
-        }
+            block
+        }));
+        let len = slots.iter().filter(|&&p| p != NO_PRIM).count();
         TriangleSoa { blocks, len }
     }
 

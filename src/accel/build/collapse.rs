@@ -18,14 +18,21 @@ use crate::accel::wide_node::{leaf_ref, WideNode, ARITY, MAX_LEAF};
 /// (`max_leaf` and the binary leaves at most `MAX_LEAF`)
 /// (0: keep the binary leaves). An empty binary tree gives an empty one; a tree that is one
 /// leaf gives one wide node with that leaf as its only child.
+#[cfg(test)]
 pub fn collapse(nodes: &[BvhNode], max_leaf: usize) -> Vec<WideNode> {
-    let mut out = Vec::new();
+    collapse_into(Vec::new(), nodes, max_leaf)
+}
+
+/// [`collapse`] into `out` (emptied first), whose capacity a caller may have prepared (huge
+/// pages before anything touched it): `wide_capacity(nodes)` nodes never reallocate.
+pub fn collapse_into(mut out: Vec<WideNode>, nodes: &[BvhNode], max_leaf: usize) -> Vec<WideNode> {
+    out.clear();
     let Some(root) = nodes.first() else {
         return out;
     };
     assert!(max_leaf <= MAX_LEAF, "wide leaves hold at most {MAX_LEAF} triangles, not {max_leaf}");
     let c = Collapser { nodes, ranges: subtree_ranges(nodes), max_leaf };
-    out.reserve(nodes.len() / 6 + 1);
+    out.reserve(wide_capacity(nodes));
     out.push(WideNode::EMPTY_NODE);
     if c.is_leaf(0) {
         out[0].set_child(0, root.min, root.max, c.leaf_ref(0));
@@ -33,6 +40,13 @@ pub fn collapse(nodes: &[BvhNode], max_leaf: usize) -> Vec<WideNode> {
         c.fill(0, 0, &mut out);
     }
     out
+}
+
+/// Most wide nodes `collapse` makes from `nodes`: each but the root replaces at least one
+/// binary interior node (at least two children each), so at most the interior count, at most
+/// half the binary nodes (plus the root of a one-leaf tree).
+pub fn wide_capacity(nodes: &[BvhNode]) -> usize {
+    nodes.len() / 2 + 1
 }
 
 /// (first triangle, triangle count) of every binary subtree. Children follow their parent in

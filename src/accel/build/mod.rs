@@ -13,11 +13,16 @@ mod binned_sah;
 mod collapse;
 mod pack;
 
+#[cfg(test)]
 pub(crate) use collapse::collapse;
+pub(crate) use collapse::{collapse_into, wide_capacity};
 pub(crate) use pack::pack_leaves;
 
 use glam::Vec4;
+use rayon::prelude::*;
+use wide::f32x8;
 
+use crate::accel::hugepage;
 use crate::math::Aabb;
 
 use super::node::BvhNode;
@@ -56,34 +61,83 @@ pub struct BuiltBvh {
     pub nodes: Vec<BvhNode>,
     /// Input primitive indices in leaf order: a leaf's `index .. index + count` range of this.
     pub order: Vec<u32>,
+    /// The union of the primitives' boxes (empty for no primitives).
+    pub bounds: Aabb,
 }
 
-/// A primitive as the builder sees it: its box (16-byte SIMD corners, so that growing a box
-/// is two vector instructions) and its index in the input, in the spare lane of `min`.
+/// A box as one 8-lane vector: the lower corner in lanes 0..3 and the upper corner negated
+/// in lanes 4..7 (lanes 3 and 7 spare). With the upper corner negated, the union of two boxes
+/// is one 8-lane `min`, so binning a primitive is one load, one `min` and one store per axis.
+/// Negation is exact, so the boxes are the same floats as with a separate `max`.
 #[derive(Debug, Clone, Copy)]
-struct PrimRef {
-    min: Vec4,
-    max: Vec4,
+struct Box8(f32x8);
+
+impl Box8 {
+    const EMPTY: Box8 = Box8(f32x8::new([f32::INFINITY; 8]));
+
+    fn new(b: &Aabb, spare: f32) -> Box8 {
+        let (l, u) = (b.min, b.max);
+        Box8(f32x8::new([l.x, l.y, l.z, spare, -u.x, -u.y, -u.z, 0.0]))
+    }
+
+    #[inline(always)]
+    fn union(self, o: Box8) -> Box8 {
+        Box8(self.0.fast_min(o.0))
+    }
+
+    #[inline(always)]
+    fn lower(&self) -> Vec4 {
+        Vec4::from_slice(&self.0.as_array()[..4])
+    }
+
+    #[inline(always)]
+    fn neg_upper(&self) -> Vec4 {
+        Vec4::from_slice(&self.0.as_array()[4..])
+    }
+
+    fn aabb(self) -> Aabb {
+        Aabb { min: self.lower().truncate(), max: (-self.neg_upper()).truncate() }
+    }
+
+    /// Half the surface area, 0 for an empty box.
+    #[inline(always)]
+    fn half_area(self) -> f32 {
+        let e = (-self.neg_upper() - self.lower()).max(Vec4::ZERO);
+        e.x * e.y + e.y * e.z + e.z * e.x
+    }
 }
+
+/// A primitive as the builder sees it: its box, with its index in the input in the spare lane
+/// of the lower corner. The index rides in the mantissa of a float with a fixed exponent
+/// (`INDEX_TAG`), in [2, 8): the spare lane goes through the binning arithmetic with the
+/// others, and an index stored as raw bits would be a subnormal float there, which costs a
+/// microcode assist per operation.
+#[derive(Debug, Clone, Copy)]
+struct PrimRef(Box8);
+
+/// Exponent bits of the index lane; indices take the 24 bits below (`MAX_PRIMS`).
+const INDEX_TAG: u32 = 0x4000_0000;
+/// Most primitives one build takes (`wide_node::MAX_TRIANGLES` is no more).
+const MAX_PRIMS: usize = 1 << 24;
 
 impl PrimRef {
     fn new(b: &Aabb, index: u32) -> PrimRef {
-        PrimRef { min: b.min.extend(f32::from_bits(index)), max: b.max.extend(0.0) }
+        PrimRef(Box8::new(b, f32::from_bits(INDEX_TAG | index)))
     }
 
     #[inline(always)]
     fn index(&self) -> u32 {
-        self.min.w.to_bits()
+        self.0 .0.as_array()[3].to_bits() & (MAX_PRIMS as u32 - 1)
     }
 
     /// Twice the centroid (w lane meaningless): binning only needs it up to a common scale.
     #[inline(always)]
     fn centroid2(&self) -> Vec4 {
-        self.min + self.max
+        self.0.lower() - self.0.neg_upper()
     }
 }
 
-/// A box with SIMD corners; only x, y, z mean anything.
+/// A box of points (the centroids) with SIMD corners; only x, y, z mean anything.
 #[derive(Debug, Clone, Copy)]
 struct Box4 {
     min: Vec4,
@@ -95,11 +149,6 @@ impl Box4 {
         Box4 { min: Vec4::splat(f32::INFINITY), max: Vec4::splat(f32::NEG_INFINITY) };
 
     #[inline(always)]
-    fn grow(self, p: &PrimRef) -> Box4 {
-        Box4 { min: self.min.min(p.min), max: self.max.max(p.max) }
-    }
-
-    #[inline(always)]
     fn grow_point(self, p: Vec4) -> Box4 {
         Box4 { min: self.min.min(p), max: self.max.max(p) }
     }
@@ -108,49 +157,82 @@ impl Box4 {
     fn union(self, o: Box4) -> Box4 {
         Box4 { min: self.min.min(o.min), max: self.max.max(o.max) }
     }
-
-    fn aabb(self) -> Aabb {
-        Aabb { min: self.min.truncate(), max: self.max.truncate() }
-    }
-
-    /// Half the surface area, 0 for an empty box.
-    #[inline(always)]
-    fn half_area(self) -> f32 {
-        let e = (self.max - self.min).max(Vec4::ZERO);
-        e.x * e.y + e.y * e.z + e.z * e.x
-    }
 }
 
 /// Builds a BVH over primitives with the given bounds. An empty input gives one empty leaf.
 pub fn build(bounds: &[Aabb], params: BuildParams) -> BuiltBvh {
+    build_merged(bounds.len(), |i| bounds[i], params, 0)
+}
+
+/// [`build`] over the `count` primitives whose boxes `box_of` gives (computed in parallel, in
+/// the caller's rayon pool), except that every node of at most `merge` primitives becomes a
+/// leaf without looking for a split. For the wide tree (`collapse` with the same `merge`),
+/// which turns every binary subtree of at most `merge` triangles into one leaf anyway: its
+/// nodes, leaf ranges and boxes come out the same, only the order of the triangles inside a
+/// leaf differs, and the many small nodes near the leaves (most of the binary tree's nodes)
+/// cost nothing.
+pub(crate) fn build_merged(
+    count: usize,
+    box_of: impl Fn(usize) -> Aabb + Sync,
+    params: BuildParams,
+    merge: usize,
+) -> BuiltBvh {
     assert!(params.bins >= 2 && params.bins <= binned_sah::MAX_BINS, "bins out of range");
-    let mut prims: Vec<PrimRef> =
-        bounds.iter().enumerate().map(|(i, b)| PrimRef::new(b, i as u32)).collect();
-    let (root_bounds, root_centroids) = bounds_of(&prims);
+    assert!(merge <= params.max_leaf.max(1), "merged leaves hold at most max_leaf primitives");
+    assert!(count <= MAX_PRIMS, "at most {MAX_PRIMS} primitives");
+    // The two big arrays ask for huge pages before they are first touched (`hugepage`:
+    // arrays under 1 MiB are left alone): far fewer page faults in a fresh process.
+    let mut prims: Vec<PrimRef> = Vec::with_capacity(count);
+    hugepage::prefer(prims.spare_capacity_mut());
+    prims.par_extend((0..count).into_par_iter().map(|i| PrimRef::new(&box_of(i), i as u32)));
+    // The root's boxes over fixed chunks, combined in order: the same floats whatever the
+    // thread count (the sign of a zero can depend on the order of a min).
+    let (root_bounds, root_centroids) = prims
+        .par_chunks(BOUNDS_CHUNK)
+        .map(bounds_of)
+        .collect::<Vec<_>>()
+        .into_iter()
+        .fold((Box8::EMPTY, Box4::EMPTY), |(b, c), (cb, cc)| (b.union(cb), c.union(cc)));
     // A binary tree over n primitives has at most 2n - 1 nodes, so the array never grows (and
     // is never copied) during the build.
-    let mut nodes = Vec::with_capacity((2 * bounds.len()).max(1));
+    let mut nodes = Vec::with_capacity((2 * count).max(1));
+    hugepage::prefer(nodes.spare_capacity_mut());
     let mut bins = binned_sah::Bins::new();
     let node = Node { bounds: root_bounds, centroids: root_centroids, first: 0, depth: 0 };
-    build_node(&mut nodes, &mut prims, node, &params, &mut bins);
+    let ctx = Ctx { params, merge };
+    build_node(&mut nodes, &mut prims, node, &ctx, &mut bins);
     // Give back the rest of the reservation so the memory the benchmark reports is what
     // traversal uses (shrinking a large block in place does not copy it).
     nodes.shrink_to_fit();
-    BuiltBvh { nodes, order: prims.iter().map(PrimRef::index).collect() }
+    BuiltBvh {
+        nodes,
+        order: prims.par_iter().map(PrimRef::index).collect(),
+        bounds: root_bounds.aabb(),
+    }
+}
+
+/// Primitives per chunk of the root's bounds pass.
+const BOUNDS_CHUNK: usize = 16 * 1024;
+
+/// What every node of one build shares.
+struct Ctx {
+    params: BuildParams,
+    /// Nodes of at most this many primitives are leaves (`build_merged`).
+    merge: usize,
 }
 
 /// The box and the centroid (`centroid2`) box of `prims`.
-fn bounds_of(prims: &[PrimRef]) -> (Box4, Box4) {
+fn bounds_of(prims: &[PrimRef]) -> (Box8, Box4) {
     prims
         .iter()
-        .fold((Box4::EMPTY, Box4::EMPTY), |(b, c), p| (b.grow(p), c.grow_point(p.centroid2())))
+        .fold((Box8::EMPTY, Box4::EMPTY), |(b, c), p| (b.union(p.0), c.grow_point(p.centroid2())))
 }
 
 /// What a node knows before it is built: its bounds, which its parent's split found, and
 /// where it sits.
 #[derive(Clone, Copy)]
 struct Node {
-    bounds: Box4,
+    bounds: Box8,
     centroids: Box4,
     /// Its first primitive's position in the final order.
     first: usize,
@@ -163,9 +245,10 @@ fn build_node(
     nodes: &mut Vec<BvhNode>,
     prims: &mut [PrimRef],
     node: Node,
-    params: &BuildParams,
+    ctx: &Ctx,
     bins: &mut binned_sah::Bins,
 ) -> u32 {
+    let params = &ctx.params;
     let Node { bounds, centroids, first, depth } = node;
     let index = nodes.len();
     let count = prims.len();
@@ -173,7 +256,7 @@ fn build_node(
     let (min, max) =
         if aabb.is_empty() { ([0.0; 3], [0.0; 3]) } else { (aabb.min.into(), aabb.max.into()) };
     nodes.push(BvhNode { min, index: first as u32, max, count: count as u32 });
-    if count <= 1 {
+    if count <= 1 || count <= ctx.merge {
         return index as u32;
     }
 
@@ -218,7 +301,7 @@ fn build_node(
         // after this node, the right one after it, interior links shifted by where each lands.
         let build_alone = |prims: &mut [PrimRef], node: Node, bins: &mut binned_sah::Bins| {
             let mut sub = Vec::with_capacity(2 * prims.len());
-            build_node(&mut sub, prims, node, params, bins);
+            build_node(&mut sub, prims, node, ctx, bins);
             sub
         };
         let (l, r) = rayon::join(
@@ -230,8 +313,8 @@ fn build_node(
         append_shifted(nodes, &r);
         right_index
     } else {
-        build_node(nodes, left, left_node, params, bins);
-        build_node(nodes, right, right_node, params, bins)
+        build_node(nodes, left, left_node, ctx, bins);
+        build_node(nodes, right, right_node, ctx, bins)
     };
     nodes[index].index = right_index;
     nodes[index].count = 0;
@@ -277,6 +360,31 @@ fn append_shifted(nodes: &mut Vec<BvhNode>, sub: &[BvhNode]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The tree and the primitive order do not depend on the thread count: more primitives
+    /// than `PARALLEL_MIN` and `BOUNDS_CHUNK`, so subtrees and the root's bounds run in
+    /// parallel, and both the full tree and the merged one.
+    #[test]
+    fn same_tree_at_one_and_two_threads() {
+        use crate::math::Vec3;
+        let mut rng = crate::sampler::Pcg32::new(7, 8);
+        let boxes: Vec<Aabb> = (0..3 * PARALLEL_MIN.max(BOUNDS_CHUNK))
+            .map(|_| {
+                let c = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 10.0;
+                Aabb::from_points(&[c, c + Vec3::splat(0.05 * rng.next_f32())])
+            })
+            .collect();
+        let built = |threads: usize, merge: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| build_merged(boxes.len(), |i| boxes[i], BuildParams::default(), merge))
+        };
+        for merge in [0, 8] {
+            let (one, two) = (built(1, merge), built(2, merge));
+            assert_eq!(one.nodes, two.nodes, "merge {merge}");
+            assert_eq!(one.order, two.order, "merge {merge}");
+            assert_eq!(one.bounds, two.bounds, "merge {merge}");
+        }
+    }
 
     /// The brute-force tree: leaves of at most `leaf` tile the primitives in order, every
     /// interior node links its second child correctly, and every box is the given one.

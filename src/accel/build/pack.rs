@@ -19,17 +19,29 @@ const OPEN: usize = 8;
 /// returns what each slot holds (a scene triangle index or `NO_PRIM`), a whole number of
 /// blocks long.
 pub fn pack_leaves(nodes: &mut [WideNode], order: &[u32]) -> Vec<u32> {
-    let mut leaves: Vec<(usize, usize, u32, u8)> = Vec::new();
-    for (at, n) in nodes.iter().enumerate() {
-        for slot in 0..ARITY {
-            let c = n.child[slot];
-            if c != EMPTY && c & LEAF_BIT != 0 {
-                let (first, count) = leaf_range(c);
-                leaves.push((first, count, at as u32, slot as u8));
-            }
+    // The leaves in depth-first order, which is the order of their ranges (the collapse keeps
+    // the binary tree's depth-first order, whose leaves tile `order`): a walk instead of a sort.
+    let mut leaves: Vec<(usize, usize, u32, u8)> = Vec::with_capacity(order.len() / 4);
+    let mut stack: Vec<(u32, u8)> = Vec::with_capacity(64);
+    let push_children = |stack: &mut Vec<(u32, u8)>, at: u32| {
+        stack.extend((0..ARITY as u8).rev().map(|slot| (at, slot)));
+    };
+    if !nodes.is_empty() {
+        push_children(&mut stack, 0);
+    }
+    while let Some((at, slot)) = stack.pop() {
+        let c = nodes[at as usize].child[slot as usize];
+        if c == EMPTY {
+            continue;
+        }
+        if c & LEAF_BIT != 0 {
+            let (first, count) = leaf_range(c);
+            leaves.push((first, count, at, slot));
+        } else {
+            push_children(&mut stack, c);
         }
     }
-    leaves.sort_unstable();
+    debug_assert!(leaves.windows(2).all(|w| w[0].0 + w[0].1 == w[1].0));
     let mut slots: Vec<u32> = Vec::with_capacity(order.len() + order.len() / 2);
     // The last `OPEN` blocks that still have free lanes: block index and lanes used.
     let mut open: Vec<(usize, usize)> = Vec::with_capacity(OPEN + 1);
