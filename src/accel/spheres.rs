@@ -176,9 +176,9 @@ impl Spheres {
     fn walk(&self, r: &Ray, stats: &mut TraceStats, mut visit: impl FnMut(u32) -> (f32, bool)) {
         let inv = Vec3::new(1.0 / r.dir.x, 1.0 / r.dir.y, 1.0 / r.dir.z);
         let mut t_max = r.t_max;
-        // The builder keeps the triangles' tree within `MAX_DEPTH` levels for up to
-        // `MAX_TRIANGLES` primitives (SAH to depth 40, then halving); spheres are not capped by
-        // that limit, so the stack has room for twice as deep a tree (2^64 leaves and more).
+        // The builder keeps a tree over at most `MAX_TRIANGLES` primitives (`check_limits`
+        // holds spheres to that too) within `MAX_DEPTH` levels; the stack has room for twice
+        // that, so no sphere count can overrun it.
         let mut stack = [0u32; 2 * MAX_DEPTH + 2];
         let mut len = 1;
         while len > 0 {

@@ -114,11 +114,8 @@ impl PathSampler {
     /// The sampler of sample `sample` of pixel `pixel` (row-major index in the image) in a
     /// render seeded `seed` with `spp` samples per pixel.
     pub fn new(seed: u64, pixel: u64, sample: u32, spp: u32) -> PathSampler {
-        PathSampler {
-            rng: Pcg32::for_index(seed, pixel * spp as u64 + sample as u64),
-            pixel_key: pixel_key(seed, pixel),
-            sample,
-        }
+        let key = pixel_key(seed, pixel);
+        PathSampler::for_pixel(SamplerKind::Independent, seed, pixel, key, sample, spp)
     }
 
     /// The sampler of sample `sample` of a pixel whose key is `pixel_key` (`pixel_key(seed,
