@@ -14,6 +14,10 @@ use crate::sampler::SamplerKind;
 use crate::scene::{Camera, Scene};
 use crate::wavefront::{self, RenderContext, RenderStats, Tile, Workspace};
 
+/// Extra camera rays per sample on emitter outlines unless `--edge-samples` says otherwise
+/// (PERF.md, "Whole renders": the noise they remove against the rays they cost).
+pub const DEFAULT_EDGE_SAMPLES: u32 = 8;
+
 /// Everything a render needs besides the scene, with the course's defaults.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RenderConfig {
@@ -25,6 +29,9 @@ pub struct RenderConfig {
     pub spp: u32,
     /// Samples per area light (`-l`).
     pub light_samples: u32,
+    /// Extra camera rays per sample on the outlines of visible emitters (`--edge-samples`),
+    /// which share the estimate of the emission the camera sees there; 0: none.
+    pub edge_samples: u32,
     /// Maximum ray depth (`-m`).
     pub max_depth: u32,
     /// Adaptive sampling (`-a batch tolerance`).
@@ -65,6 +72,7 @@ impl Default for RenderConfig {
             height: 600,
             spp: 1,
             light_samples: 1,
+            edge_samples: DEFAULT_EDGE_SAMPLES,
             max_depth: 1,
             adaptive: None,
             samples: None,
@@ -175,6 +183,7 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         spp: config.spp,
         samples,
         light_samples: config.light_samples,
+        edge_samples: config.edge_samples,
         max_depth: config.max_depth,
         adaptive: config.adaptive,
         seed: config.seed,

@@ -49,6 +49,7 @@ fn bad_flags_fail_cleanly() {
         (vec!["--frobnicate", s], "unknown option"),
         (vec!["--sampler", "halton", s], "unknown sampler 'halton'"),
         (vec![s, "--sampler"], "--sampler needs a value"),
+        (vec!["--edge-samples", "1000", s], "--edge-samples: 1000 is out of range"),
         (vec!["-f", "out.jpg", s], ".png or .exr"),
         (vec!["-f", "/no/such/dir/x.png", s], "does not exist"),
         (vec![], "no scene file"),

@@ -129,7 +129,7 @@ pub(super) fn print_render_stats(
     let per_ray = |n: u64| n as f64 / rays.max(1) as f64;
     report.print(format_args!("[PathTracer] Rendering... 100%! ({secs:.4}s)\n"));
     report.print(format_args!(
-        "[PathTracer] BVH traced {rays} rays ({} camera, {} bounce, {} shadow, {} hemisphere).\n",
+        "[PathTracer] BVH traced {rays} rays ({} camera, {} bounce, {} shadow, {} probe).\n",
         s.camera_rays, s.bounce_rays, s.shadow_rays, s.probe_rays
     ));
     report.print(format_args!(

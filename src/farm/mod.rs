@@ -37,6 +37,9 @@ pub fn image_flags(config: &RenderConfig, accel: AccelKind) -> String {
     if let Some((batch, tol)) = config.adaptive {
         s += &format!(" -a {batch} {tol}");
     }
+    if config.edge_samples != crate::render::DEFAULT_EDGE_SAMPLES {
+        s += &format!(" --edge-samples {}", config.edge_samples);
+    }
     if accel == AccelKind::BruteForce {
         s += " --no-bvh";
     }

@@ -29,6 +29,9 @@ pub struct RenderContext<'a> {
     /// Direct-light samples (`-l`): draws per non-delta light and for the emitters, or
     /// hemisphere directions per scene light (`-H`).
     pub light_samples: u32,
+    /// Extra camera rays per sample on emitter outlines (`--edge-samples`, see
+    /// `wavefront::stages::generate`).
+    pub edge_samples: u32,
     /// Maximum path depth (`-m`): vertices reached at this depth add only emission and spawn no
     /// rays.
     pub max_depth: u32,

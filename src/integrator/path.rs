@@ -2,7 +2,8 @@
 //! illumination (`-m N`) with three estimators of direct light.
 //!
 //! At a path vertex reached by a ray of depth k (camera rays have k = 0):
-//! 1. Emission of a front-facing emitter is added when k = 0 (the course's zero bounce), when
+//! 1. Emission of a front-facing emitter is added when k = 0 (the course's zero bounce, weighted
+//!    by the path's `zero_bounce_weight` where extra camera rays share it), when
 //!    the previous bounce was specular (no light sampling happened there), and, weighted by
 //!    MIS, in the emissive-geometry mode. Otherwise it is the direct estimator's job, so no
 //!    emitter is counted twice.
@@ -164,7 +165,10 @@ pub fn shade_hit(
 
     if let Material::Emission { radiance } = *material {
         if cos_out > 0.0 {
-            let w = emission_weight(direct, ctx, depth, surface, cos_out, paths.bsdf_pdf[pi]);
+            let mut w = emission_weight(direct, ctx, depth, surface, cos_out, paths.bsdf_pdf[pi]);
+            if depth == 0 {
+                w *= paths.zero_bounce_weight[pi];
+            }
             paths.radiance[pi] += w * paths.throughput[pi] * radiance;
         }
         return; // Emitters reflect nothing.

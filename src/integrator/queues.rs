@@ -21,6 +21,9 @@ pub struct PathState {
     pub bsdf_pdf: Vec<f32>,
     /// Each path's random numbers (see `sampler`).
     pub sampler: Vec<PathSampler>,
+    /// The weight of the emission its camera ray sees: 1, or 1 / (K + 1) where K extra camera
+    /// rays share that estimate (emitter outlines, `wavefront::stages::generate`).
+    pub zero_bounce_weight: Vec<f32>,
 }
 
 impl PathState {
@@ -31,10 +34,11 @@ impl PathState {
         self.radiance.clear();
         self.bsdf_pdf.clear();
         self.sampler.clear();
+        self.zero_bounce_weight.clear();
     }
 
-    /// Adds a path for pixel `pixel` with throughput 1, no radiance and a `bsdf_pdf` of 0;
-    /// returns its index.
+    /// Adds a path for pixel `pixel` with throughput 1, no radiance, a `bsdf_pdf` of 0 and a
+    /// zero-bounce weight of 1; returns its index.
     pub fn push(&mut self, pixel: u32, sampler: PathSampler) -> u32 {
         let id = self.pixel.len() as u32;
         self.pixel.push(pixel);
@@ -42,6 +46,7 @@ impl PathState {
         self.radiance.push(Vec3::ZERO);
         self.bsdf_pdf.push(0.0);
         self.sampler.push(sampler);
+        self.zero_bounce_weight.push(1.0);
         id
     }
 

@@ -57,6 +57,9 @@ pub enum Decision {
     Bsdf,
     /// The BSDF lobe choice (x) and Russian roulette (y).
     LobeAndRoulette,
+    /// Where in the pixel an extra camera ray on an emitter's outline goes
+    /// (`--edge-samples`, `wavefront::stages::generate`).
+    EdgeJitter,
 }
 
 impl Decision {
@@ -70,6 +73,7 @@ impl Decision {
             Decision::Hemisphere => (3, 0),
             Decision::Bsdf => (4, 0),
             Decision::LobeAndRoulette => (5, 0),
+            Decision::EdgeJitter => (6, 0),
         };
         // Depth below 2^16 and light index below 2^13 (both far beyond any render) keep the
         // dimensions distinct before the (bijective) mix.

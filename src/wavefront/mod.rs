@@ -13,6 +13,10 @@
 //!  accumulate: PathState radiance ──> tile pixels (film)
 //! ```
 //!
+//! Before its first batch a tile finds the pixels on an emitter's outline (rays through its
+//! pixel corners); their samples also queue extra camera rays that only add emission
+//! (`stages::generate`, `--edge-samples`).
+//!
 //! Shading a queue (`stages::shade`) starts with one pass that draws every random number its
 //! vertices may use (`sampler::DrawBatch`, vectorised). Then the queue goes by in chunks of 8:
 //! diffuse vertices under light sampling or MIS are shaded together in SIMD lanes
@@ -37,7 +41,7 @@ pub use crate::integrator::{
 };
 
 use crate::accel::TraceStats;
-use crate::math::{ExactRgb, Hit};
+use crate::math::{ExactRgb, Hit, Vec3};
 use crate::sampler::DrawBatch;
 
 /// Tile side in pixels.
@@ -74,7 +78,9 @@ pub struct RenderStats {
     pub bounce_rays: u64,
     /// Shadow (any-hit) rays of direct lighting.
     pub shadow_rays: u64,
-    /// Closest-hit direct-light rays of uniform hemisphere sampling.
+    /// Closest-hit rays that add the emission they see: uniform hemisphere sampling's
+    /// direct-light rays, and the extra camera rays on emitter outlines with the corner rays
+    /// that find those outlines (`stages::generate`).
     pub probe_rays: u64,
     /// Path vertices shaded in SIMD lanes (`integrator::diffuse`) rather than one by one.
     pub lane_vertices: u64,
@@ -145,6 +151,11 @@ pub struct Workspace {
     draws: DrawBatch,
     shade: stages::ShadeScratch,
     pixels: PixelStats,
+    /// The tile's pixels on an emitter's outline (`stages::mark_emitter_edges`), the emission
+    /// seen through its pixel corners, and the extra camera rays of those pixels.
+    edges: Vec<bool>,
+    corner_emission: Vec<Vec3>,
+    edge_rays: ShadowQueue,
 }
 
 /// Per-pixel running sums of one tile: radiance, and the illuminance moments that adaptive
@@ -201,6 +212,15 @@ pub fn render_tile(
     stats: &mut RenderStats,
 ) {
     ws.pixels.reset(tile.pixel_count());
+    stats.probe_rays += stages::mark_emitter_edges(
+        ctx,
+        tile,
+        &mut ws.rays,
+        &mut ws.hits,
+        &mut ws.corner_emission,
+        &mut ws.edges,
+        &mut stats.trace,
+    );
     let max_batch = sample_batch(ctx);
     let mut first = ctx.samples.start;
     while first < ctx.samples.end {
@@ -249,11 +269,15 @@ fn trace_sample_batch(
         first,
         batch,
         &ws.pixels.active,
+        &ws.edges,
         &mut ws.paths,
         &mut ws.rays,
+        &mut ws.edge_rays,
     );
     let camera_len = ws.rays.len();
     stats.camera_rays += camera_len as u64;
+    stats.probe_rays += ws.edge_rays.len() as u64;
+    stages::trace_emission_probes(ctx, &ws.edge_rays, &mut ws.paths, &mut stats.trace);
     let mut depth = 0;
     while !ws.rays.is_empty() {
         let coherence = stages::Coherence::of_queue(

@@ -1,7 +1,20 @@
 //! Stage 1: camera rays for a batch of samples of every pixel of a tile.
+//!
+//! On the outline of a visible emitter a pixel's value jumps by the emitter's radiance between
+//! camera samples that land on it and beside it, and at moderate spp that step is most of the
+//! image's noise (PERF.md, "Whole renders"). So each sample of such a pixel also traces K extra
+//! camera rays (`--edge-samples K`, stratified by their own Sobol sequence) that only look for
+//! emission, and the K + 1 rays share the zero-bounce estimate, each weighted 1 / (K + 1). The
+//! rest of the path still starts at the sample's own camera ray. Which pixels count as outline
+//! is decided before any sample, from rays through the tile's pixel corners (a pixel whose four
+//! corners see different emission), so the choice does not depend on the samples it changes and
+//! the estimator stays unbiased; a pixel the corners miss keeps the plain estimate.
 
-use super::super::{PathState, RayQueue, RenderContext, Tile};
-use crate::math::{Ray, Vec3};
+use super::super::{PathState, RayQueue, RenderContext, ShadowQueue, Surface, Tile};
+use super::extend::{extend, Coherence};
+use crate::accel::TraceStats;
+use crate::integrator::surface_material;
+use crate::math::{Hit, Ray, Vec3};
 use crate::sampler::{self, Decision, PathSampler, SamplerKind};
 
 /// Paths whose camera rays are made together in SIMD lanes.
@@ -15,14 +28,20 @@ const LANES: usize = 8;
 /// Two passes: the paths first (a pixel's key hashed once for all its samples), then their
 /// rays 8 at a time, the Sobol jitter and the directions in lanes. Done one path at a time this
 /// stage was a sixth of a `-m 1` render (PERF.md, "Whole renders"); the rays are the same bits.
+///
+/// Paths of pixels marked in `edges` (`mark_emitter_edges`) also queue their extra camera rays
+/// in `edge_rays`, as emission probes weighted 1 / (K + 1) (`trace_emission_probes`).
+#[allow(clippy::too_many_arguments)]
 pub fn generate_camera_rays(
     ctx: &RenderContext,
     tile: Tile,
     first_sample: u32,
     batch: u32,
     active: &[bool],
+    edges: &[bool],
     paths: &mut PathState,
     rays: &mut RayQueue,
+    edge_rays: &mut ShadowQueue,
 ) {
     paths.clear();
     rays.clear();
@@ -62,6 +81,92 @@ pub fn generate_camera_rays(
             rays.push(Ray::new(ctx.camera.eye, Vec3::new(x[l], y[l], z[l])), p as u32);
         }
     }
+    edge_rays.clear();
+    if edges.contains(&true) {
+        queue_edge_rays(ctx, tile, edges, paths, edge_rays);
+    }
+}
+
+/// The extra camera rays of the paths whose pixel is marked in `edges`.
+fn queue_edge_rays(
+    ctx: &RenderContext,
+    tile: Tile,
+    edges: &[bool],
+    paths: &mut PathState,
+    edge_rays: &mut ShadowQueue,
+) {
+    let k = ctx.edge_samples;
+    let weight = 1.0 / (k + 1) as f32;
+    for p in 0..paths.len() {
+        let local = paths.pixel[p];
+        if !edges[local as usize] {
+            continue;
+        }
+        paths.zero_bounce_weight[p] = weight;
+        let px = (tile.x0 + local % tile.width) as f32;
+        let py = (tile.y0 + local / tile.width) as f32;
+        for sub in 0..k {
+            let [jx, jy] = paths.sampler[p].get_2d(ctx.sampler, 0, Decision::EdgeJitter, sub, k);
+            let ray = ctx.camera.ray_through_pixel(px + jx, py + jy);
+            edge_rays.push(ray, Vec3::splat(weight), p as u32);
+        }
+    }
+}
+
+/// Marks in `edges` the tile's pixels whose four corners see different emission (an emitter's
+/// outline, or an occluder's in front of one), when extra camera rays apply at all: a path
+/// integrator, an emissive material, more than one sample per pixel (one goes through the
+/// centre) and `--edge-samples` above 0. `rays`, `hits` and `seen` are scratch space; returns
+/// the number of corner rays traced.
+pub fn mark_emitter_edges(
+    ctx: &RenderContext,
+    tile: Tile,
+    rays: &mut RayQueue,
+    hits: &mut Vec<Option<Hit>>,
+    seen: &mut Vec<Vec3>,
+    edges: &mut Vec<bool>,
+    stats: &mut TraceStats,
+) -> u64 {
+    edges.clear();
+    edges.resize(tile.pixel_count(), false);
+    let applies = ctx.edge_samples > 0
+        && ctx.spp > 1
+        && ctx.integrator.direct_lighting().is_some()
+        && ctx.scene.materials.iter().any(|m| m.emission() != Vec3::ZERO);
+    if !applies {
+        return 0;
+    }
+    rays.clear();
+    let (w, h) = (tile.width + 1, tile.height + 1);
+    for cy in 0..h {
+        for cx in 0..w {
+            let ray = ctx.camera.ray_through_pixel((tile.x0 + cx) as f32, (tile.y0 + cy) as f32);
+            rays.push(ray, 0);
+        }
+    }
+    extend(ctx, rays, Coherence::of_queue(0, 0, 0, ctx.packets, false), hits, stats);
+    seen.clear();
+    seen.extend(rays.rays.iter().zip(hits.iter()).map(|(r, h)| seen_emission(ctx, r, h)));
+    for y in 0..tile.height {
+        for x in 0..tile.width {
+            let c = (y * w + x) as usize;
+            let corners = [seen[c], seen[c + 1], seen[c + w as usize], seen[c + w as usize + 1]];
+            edges[(y * tile.width + x) as usize] = corners.iter().any(|&e| e != corners[0]);
+        }
+    }
+    rays.len() as u64
+}
+
+/// The emission a camera ray sees at its hit: a front-facing emitter's radiance, else zero.
+fn seen_emission(ctx: &RenderContext, ray: &Ray, hit: &Option<Hit>) -> Vec3 {
+    let Some(hit) = hit else {
+        return Vec3::ZERO;
+    };
+    let emitted = ctx.scene.materials[surface_material(ctx.scene, hit.prim) as usize].emission();
+    if emitted == Vec3::ZERO || Surface::at(ctx.scene, ray, hit).ng.dot(ray.dir) >= 0.0 {
+        return Vec3::ZERO;
+    }
+    emitted
 }
 
 /// The position within the pixel of each of up to `LANES` paths' camera rays; lanes past
