@@ -184,6 +184,7 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         samples,
         light_samples: config.light_samples,
         edge_samples: config.edge_samples,
+        emitter_window: wavefront::emitter_window(scene, &camera),
         max_depth: config.max_depth,
         adaptive: config.adaptive,
         seed: config.seed,

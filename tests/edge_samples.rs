@@ -16,7 +16,8 @@ mod common;
 use common::{render_output, SceneBuilder, LIGHT};
 use pathtracer::math::Vec3;
 use pathtracer::render::RenderOutput;
-use pathtracer::scene::{Light, Material, Scene};
+use pathtracer::scene::{Camera, Light, Material, Scene};
+use pathtracer::wavefront::emitter_window;
 
 const SEEDS: [u64; 2] = [1, 2];
 
@@ -77,11 +78,17 @@ fn outline_pixels_keep_their_mean_and_lose_their_noise() {
         "{} outline pixels of {n}: the emitter's edge should be a thin line",
         outline.len()
     );
-    // Corner rays and extra camera rays were traced, and only with extra rays asked for.
+    // Corner rays and extra camera rays were traced, and only with extra rays asked for: with
+    // 16 extra rays instead of 8 the same pixels take 64 x 8 more each, so the difference
+    // counts the marked pixels, and the rest are corner rays, 17 x 17 per tile near the
+    // emitter (`emitter_window`), at most all 12 tiles.
     assert_eq!(plain[0].stats.probe_rays, 0);
-    let corners = 4 * 3 * 17 * 17;
-    let extra = split[0].stats.probe_rays - corners;
-    assert!(extra.is_multiple_of(64 * 8) && extra / (64 * 8) >= outline.len() as u64);
+    let more = render(16, SEEDS[0]).stats.probe_rays - split[0].stats.probe_rays;
+    let marked = more / (64 * 8);
+    assert_eq!(more % (64 * 8), 0);
+    assert!(marked >= outline.len() as u64, "{marked} pixels marked, {} changed", outline.len());
+    let corners = split[0].stats.probe_rays - marked * 64 * 8;
+    assert!(corners.is_multiple_of(17 * 17) && corners <= 12 * 17 * 17, "{corners} corner rays");
 
     let (m0, se0) = mean_and_se(&plain, &outline);
     let (m8, se8) = mean_and_se(&split, &outline);
@@ -108,4 +115,27 @@ fn one_sample_per_pixel_goes_through_the_centre_alone() {
     let (plain, split) = (one(0), one(8));
     assert_eq!(plain.pixels, split.pixels);
     assert_eq!(split.stats.probe_rays, 0);
+}
+
+#[test]
+fn only_tiles_near_the_emitters_look_for_outlines() {
+    let scene = emitter_in_view();
+    let camera = Camera::new(&scene.camera, scene.bounds(), 64, 48);
+    let [x0, y0, x1, y1] = emitter_window(&scene, &camera).expect("the scene has an emitter");
+    // The emissive square sits in the middle of the view, well inside the image.
+    assert!(0.0 < x0 && x0 < x1 && x1 < 64.0 && 0.0 < y0 && y0 < y1 && y1 < 48.0);
+    // Its four corners' pixels fall inside the window.
+    for (x, y) in [(-0.1, -0.1), (0.1, -0.1), (0.1, 0.1), (-0.1, 0.1)] {
+        let [px, py] = camera.pixel_of(Vec3::new(x, y, -0.5)).unwrap();
+        assert!((x0..=x1).contains(&px) && (y0..=y1).contains(&py));
+    }
+    // Without emitters there is no window, and no corner ray is traced.
+    let mut dark = scene.clone();
+    dark.materials[1] = Material::Diffuse { albedo: Vec3::splat(0.5) };
+    let camera = Camera::new(&dark.camera, dark.bounds(), 64, 48);
+    assert_eq!(emitter_window(&dark, &camera), None);
+    let out = render_output(&dark, LIGHT, |c| {
+        (c.width, c.height, c.spp) = (64, 48, 4);
+    });
+    assert_eq!(out.stats.probe_rays, 0);
 }

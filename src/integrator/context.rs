@@ -32,6 +32,10 @@ pub struct RenderContext<'a> {
     /// Extra camera rays per sample on emitter outlines (`--edge-samples`, see
     /// `wavefront::stages::generate`).
     pub edge_samples: u32,
+    /// The image rectangle (x0, y0, x1, y1 in pixels) outside which no camera ray can see
+    /// emissive geometry, from the emitters' projections; `None`: none can be seen anywhere
+    /// (`wavefront::emitter_window`).
+    pub emitter_window: Option<[f32; 4]>,
     /// Maximum path depth (`-m`): vertices reached at this depth add only emission and spawn no
     /// rays.
     pub max_depth: u32,

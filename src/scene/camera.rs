@@ -117,6 +117,20 @@ impl Camera {
         [(x * recip).to_array(), (y * recip).to_array(), (z * recip).to_array()]
     }
 
+    /// The image point (px, py) in pixels (as `ray_through_pixel` takes it) where `p` appears,
+    /// or `None` if `p` is not in front of the camera (on or behind the eye's plane).
+    pub fn pixel_of(&self, p: Vec3) -> Option<[f32; 2]> {
+        let v = p - self.eye;
+        let depth = -v.dot(self.z);
+        if depth <= 0.0 || !depth.is_finite() {
+            return None;
+        }
+        let (cx, cy) = (v.dot(self.x) / depth, v.dot(self.y) / depth);
+        let sx = (cx / self.tan_half_h + 1.0) / 2.0;
+        let sy = (cy / self.tan_half_v + 1.0) / 2.0;
+        Some([sx * self.width as f32, (1.0 - sy) * self.height as f32])
+    }
+
     /// Horizontal and vertical field of view for this image size, degrees.
     pub fn fov_deg(&self) -> (f32, f32) {
         (2.0 * self.tan_half_h.atan().to_degrees(), 2.0 * self.tan_half_v.atan().to_degrees())
@@ -142,6 +156,22 @@ mod tests {
 
     fn unit_box() -> Aabb {
         Aabb { min: Vec3::splat(-1.0), max: Vec3::splat(1.0) }
+    }
+
+    /// `pixel_of` inverts `ray_through_pixel`: a point on the ray through (px, py) appears at
+    /// (px, py); the eye's plane and what lies behind it appear nowhere.
+    #[test]
+    fn points_appear_where_their_camera_ray_goes() {
+        let desc =
+            CameraDesc { view_dir: Vec3::new(0.3, 0.4, 1.0).normalize(), ..CameraDesc::default() };
+        let cam = Camera::new(&desc, unit_box(), 400, 300);
+        for (px, py) in [(0.0, 0.0), (200.5, 150.25), (399.9, 12.0), (17.0, 299.0)] {
+            let r = cam.ray_through_pixel(px, py);
+            let [x, y] = cam.pixel_of(r.origin + 3.0 * r.dir).unwrap();
+            assert!((x - px).abs() < 1e-3 && (y - py).abs() < 1e-3, "({px}, {py}) -> ({x}, {y})");
+        }
+        assert_eq!(cam.pixel_of(cam.eye), None);
+        assert_eq!(cam.pixel_of(cam.eye + cam.z), None);
     }
 
     /// The lane directions are the scalar rays' directions bit for bit (camera-ray generation

@@ -39,6 +39,7 @@ mod stages;
 pub use crate::integrator::{
     PathState, RayQueue, RenderContext, ShadeOutputs, ShadowQueue, Surface,
 };
+pub use stages::emitter_window;
 
 use crate::accel::TraceStats;
 use crate::math::{ExactRgb, Hit, Vec3};
@@ -277,7 +278,14 @@ fn trace_sample_batch(
     let camera_len = ws.rays.len();
     stats.camera_rays += camera_len as u64;
     stats.probe_rays += ws.edge_rays.len() as u64;
-    stages::trace_emission_probes(ctx, &ws.edge_rays, &mut ws.paths, &mut stats.trace);
+    stages::trace_emission_probes(
+        ctx,
+        &ws.edge_rays,
+        stages::Coherence::of_queue(0, 0, 0, ctx.packets, false),
+        &mut ws.hits,
+        &mut ws.paths,
+        &mut stats.trace,
+    );
     let mut depth = 0;
     while !ws.rays.is_empty() {
         let coherence = stages::Coherence::of_queue(
@@ -317,7 +325,14 @@ fn trace_sample_batch(
             &mut ws.paths,
             &mut stats.trace,
         );
-        stages::trace_emission_probes(ctx, &ws.probes, &mut ws.paths, &mut stats.trace);
+        stages::trace_emission_probes(
+            ctx,
+            &ws.probes,
+            stages::Coherence::Incoherent,
+            &mut ws.hits,
+            &mut ws.paths,
+            &mut stats.trace,
+        );
         std::mem::swap(&mut ws.rays, &mut ws.next_rays);
         stats.bounce_rays += ws.rays.len() as u64;
         depth += 1;

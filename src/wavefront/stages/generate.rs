@@ -16,6 +16,7 @@ use crate::accel::TraceStats;
 use crate::integrator::surface_material;
 use crate::math::{Hit, Ray, Vec3};
 use crate::sampler::{self, Decision, PathSampler, SamplerKind};
+use crate::scene::{Camera, Scene};
 
 /// Paths whose camera rays are made together in SIMD lanes.
 const LANES: usize = 8;
@@ -132,7 +133,13 @@ pub fn mark_emitter_edges(
     let applies = ctx.edge_samples > 0
         && ctx.spp > 1
         && ctx.integrator.direct_lighting().is_some()
-        && ctx.scene.materials.iter().any(|m| m.emission() != Vec3::ZERO);
+        && ctx.emitter_window.is_some_and(|[x0, y0, x1, y1]| {
+            // The tile's pixels, with a pixel's margin for the window's rounding.
+            let (tx0, ty0) = (tile.x0 as f32 - 1.0, tile.y0 as f32 - 1.0);
+            let (tx1, ty1) =
+                ((tile.x0 + tile.width) as f32 + 1.0, (tile.y0 + tile.height) as f32 + 1.0);
+            tx0 <= x1 && x0 <= tx1 && ty0 <= y1 && y0 <= ty1
+        });
     if !applies {
         return 0;
     }
@@ -155,6 +162,38 @@ pub fn mark_emitter_edges(
         }
     }
     rays.len() as u64
+}
+
+/// The image rectangle [x0, y0, x1, y1] (pixels, row 0 at the top) that holds the projection
+/// of every primitive with an emissive material: no camera ray outside it can hit an emitter,
+/// so tiles outside it look for no outline. `None` without emissive primitives; the whole
+/// image plane when an emitter reaches behind the camera (its projection is then unbounded).
+pub fn emitter_window(scene: &Scene, camera: &Camera) -> Option<[f32; 4]> {
+    let emits = |m: u32| scene.materials[m as usize].emission() != Vec3::ZERO;
+    let mut points: Vec<Vec3> = Vec::new();
+    for (i, &m) in scene.triangle_materials.iter().enumerate() {
+        if emits(m) {
+            points.extend(scene.triangle(i));
+        }
+    }
+    for s in scene.spheres.iter().filter(|s| emits(s.material)) {
+        // The box's corners: its projection holds the sphere's.
+        for k in 0..8 {
+            let sign = |bit: usize| if k >> bit & 1 == 1 { 1.0 } else { -1.0 };
+            points.push(s.center + s.radius * Vec3::new(sign(0), sign(1), sign(2)));
+        }
+    }
+    if points.is_empty() {
+        return None;
+    }
+    let mut window = [f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY];
+    for p in points {
+        let Some([x, y]) = camera.pixel_of(p) else {
+            return Some([f32::NEG_INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::INFINITY]);
+        };
+        window = [window[0].min(x), window[1].min(y), window[2].max(x), window[3].max(y)];
+    }
+    Some(window)
 }
 
 /// The emission a camera ray sees at its hit: a front-facing emitter's radiance, else zero.

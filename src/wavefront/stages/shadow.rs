@@ -3,7 +3,8 @@
 use super::super::{PathState, RenderContext, ShadowQueue, Surface};
 use super::extend::{Coherence, PACKET};
 use crate::accel::TraceStats;
-use crate::math::Vec3;
+use crate::integrator::surface_material;
+use crate::math::{Hit, Vec3};
 
 /// Shadow rays take the coherence of the queue whose hits made them (`Coherence::of_queue`):
 /// from a coherent queue they start at neighbouring points and head for the same lights, so
@@ -28,22 +29,37 @@ pub fn trace_shadow_rays(
     }
 }
 
-/// Closest-hit queries for uniform hemisphere sampling: each probe adds its weight times the
-/// emission of the front face it hits (scene lights are not geometry and are never hit).
+/// Closest-hit queries for emission probes (uniform hemisphere sampling's directions, the
+/// extra camera rays on emitter outlines): each probe adds its weight times the emission of
+/// the front face it hits (scene lights are not geometry and are never hit). `hits` is scratch
+/// space; the probes of a coherent queue go in packets.
 pub fn trace_emission_probes(
     ctx: &RenderContext,
     probes: &ShadowQueue,
+    coherence: Coherence,
+    hits: &mut Vec<Option<Hit>>,
     paths: &mut PathState,
     stats: &mut TraceStats,
 ) {
-    for ((ray, weight), &path) in probes.rays.iter().zip(&probes.radiance).zip(&probes.path) {
-        let Some(hit) = ctx.accel.intersect(ray, stats) else {
+    if probes.is_empty() {
+        return;
+    }
+    hits.clear();
+    hits.resize(probes.len(), None);
+    match coherence {
+        Coherence::Coherent => ctx.accel.intersect_packets::<PACKET>(&probes.rays, hits, stats),
+        Coherence::Incoherent => ctx.accel.intersect_stream(&probes.rays, hits, stats),
+    }
+    for (i, hit) in hits.iter().enumerate() {
+        let Some(hit) = hit else {
             continue;
         };
-        let surface = Surface::at(ctx.scene, ray, &hit);
-        let emitted = ctx.scene.materials[surface.material as usize].emission();
-        if emitted != Vec3::ZERO && surface.ng.dot(ray.dir) < 0.0 {
-            paths.radiance[path as usize] += *weight * emitted;
+        // The material first: only an emitter's hit needs its normal.
+        let emitted =
+            ctx.scene.materials[surface_material(ctx.scene, hit.prim) as usize].emission();
+        let ray = &probes.rays[i];
+        if emitted != Vec3::ZERO && Surface::at(ctx.scene, ray, hit).ng.dot(ray.dir) < 0.0 {
+            paths.radiance[probes.path[i] as usize] += probes.radiance[i] * emitted;
         }
     }
 }
