@@ -116,9 +116,9 @@ fn queue_edge_rays(
 
 /// Marks in `edges` the tile's pixels whose four corners see different emission (an emitter's
 /// outline, or an occluder's in front of one), when extra camera rays apply at all: a path
-/// integrator, an emissive material, more than one sample per pixel (one goes through the
-/// centre) and `--edge-samples` above 0. `rays`, `hits` and `seen` are scratch space; returns
-/// the number of corner rays traced.
+/// integrator, more than one sample per pixel (one goes through the centre), `--edge-samples`
+/// above 0, and a tile that the emitters' projection reaches (`emitter_window`). `rays`, `hits`
+/// and `seen` are scratch space; returns the number of corner rays traced.
 pub fn mark_emitter_edges(
     ctx: &RenderContext,
     tile: Tile,
@@ -170,30 +170,25 @@ pub fn mark_emitter_edges(
 /// image plane when an emitter reaches behind the camera (its projection is then unbounded).
 pub fn emitter_window(scene: &Scene, camera: &Camera) -> Option<[f32; 4]> {
     let emits = |m: u32| scene.materials[m as usize].emission() != Vec3::ZERO;
-    let mut points: Vec<Vec3> = Vec::new();
-    for (i, &m) in scene.triangle_materials.iter().enumerate() {
-        if emits(m) {
-            points.extend(scene.triangle(i));
-        }
-    }
-    for s in scene.spheres.iter().filter(|s| emits(s.material)) {
-        // The box's corners: its projection holds the sphere's.
-        for k in 0..8 {
-            let sign = |bit: usize| if k >> bit & 1 == 1 { 1.0 } else { -1.0 };
-            points.push(s.center + s.radius * Vec3::new(sign(0), sign(1), sign(2)));
-        }
-    }
-    if points.is_empty() {
-        return None;
-    }
-    let mut window = [f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY];
-    for p in points {
+    let triangles = (0..scene.triangles.len())
+        .filter(|&i| emits(scene.triangle_materials[i]))
+        .flat_map(|i| scene.triangle(i));
+    // A sphere's bounding box corners: their projection holds the sphere's.
+    let spheres = scene.spheres.iter().filter(|s| emits(s.material)).flat_map(|s| {
+        (0..8).map(move |k: u32| {
+            let sign = |bit: u32| if k >> bit & 1 == 1 { 1.0 } else { -1.0 };
+            s.center + s.radius * Vec3::new(sign(0), sign(1), sign(2))
+        })
+    });
+    let mut window: Option<[f32; 4]> = None;
+    for p in triangles.chain(spheres) {
         let Some([x, y]) = camera.pixel_of(p) else {
             return Some([f32::NEG_INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::INFINITY]);
         };
-        window = [window[0].min(x), window[1].min(y), window[2].max(x), window[3].max(y)];
+        let [x0, y0, x1, y1] = window.unwrap_or([x, y, x, y]);
+        window = Some([x0.min(x), y0.min(y), x1.max(x), y1.max(y)]);
     }
-    Some(window)
+    window
 }
 
 /// The emission a camera ray sees at its hit: a front-facing emitter's radiance, else zero.
