@@ -79,17 +79,16 @@ fn outline_pixels_keep_their_mean_and_lose_their_noise() {
         outline.len()
     );
     // Corner rays and extra camera rays were traced, and only with extra rays asked for: with
-    // 16 extra rays instead of 8 the same pixels take 64 x 8 more each, so the difference
-    // counts the marked pixels, and the rest are corner rays, 17 x 17 per tile near the
-    // emitter (`emitter_window`), at most all 12 tiles.
+    // 2 extra rays instead of 1 the same pixels take 64 more each (both within the tiles'
+    // budget), so the difference counts the marked pixels, and the rest are corner rays,
+    // 17 x 17 per tile near the emitter (`emitter_window`), at most all 12 tiles.
     assert_eq!(plain[0].stats.probe_rays, 0);
-    let more = render(16, SEEDS[0]).stats.probe_rays - split[0].stats.probe_rays;
-    let marked = more / (64 * 8);
-    assert_eq!(more % (64 * 8), 0);
+    let (one, two) = (render(1, SEEDS[0]).stats.probe_rays, render(2, SEEDS[0]).stats.probe_rays);
+    let marked = (two - one) / 64;
+    assert_eq!((two - one) % 64, 0);
     assert!(marked >= outline.len() as u64, "{marked} pixels marked, {} changed", outline.len());
-    let corners = split[0].stats.probe_rays - marked * 64 * 8;
+    let corners = one - marked * 64;
     assert!(corners.is_multiple_of(17 * 17) && corners <= 12 * 17 * 17, "{corners} corner rays");
-
     let (m0, se0) = mean_and_se(&plain, &outline);
     let (m8, se8) = mean_and_se(&split, &outline);
     let bound = 5.0 * (se0 * se0 + se8 * se8).sqrt();
@@ -138,4 +137,37 @@ fn only_tiles_near_the_emitters_look_for_outlines() {
         (c.width, c.height, c.spp) = (64, 48, 4);
     });
     assert_eq!(out.stats.probe_rays, 0);
+}
+
+/// Thirty thin emissive strips in front of the wall: most pixels lie on an outline.
+fn striped_emitter() -> Scene {
+    let mut b = SceneBuilder::new();
+    b.scene.camera.view_dir = Vec3::new(0.1, 0.05, 1.0).normalize();
+    let white = b.material(Material::Diffuse { albedo: Vec3::splat(0.7) });
+    let emit = b.material(Material::Emission { radiance: Vec3::splat(8.0) });
+    square(&mut b, -1.0, 1.0, white);
+    for i in 0..30 {
+        let x = -0.3 + 0.02 * i as f32;
+        let c = |x: f32, y: f32| Vec3::new(x, y, -0.5);
+        b.quad([c(x, -0.3), c(x + 0.01, -0.3), c(x + 0.01, 0.3), c(x, 0.3)], emit);
+    }
+    b.light(Light::Point { position: Vec3::new(0.5, 0.5, 1.0), radiance: Vec3::splat(1.0) });
+    b.build()
+}
+
+#[test]
+fn a_tile_full_of_outlines_traces_at_most_twice_its_camera_rays() {
+    let out = render_output(&striped_emitter(), LIGHT, |c| {
+        (c.width, c.height, c.spp) = (64, 48, 8);
+    });
+    let corners_at_most = 12 * 17 * 17;
+    let camera = out.stats.camera_rays;
+    assert_eq!(camera, 64 * 48 * 8);
+    assert!(
+        out.stats.probe_rays <= corners_at_most + camera,
+        "{} probe rays for {camera} camera rays",
+        out.stats.probe_rays
+    );
+    // The strips are outlines, so extra rays were traced, only fewer of them per pixel.
+    assert!(out.stats.probe_rays > corners_at_most, "{} probe rays", out.stats.probe_rays);
 }

@@ -154,7 +154,7 @@ pub struct Workspace {
     pixels: PixelStats,
     /// The tile's pixels on an emitter's outline (`stages::mark_emitter_edges`), the emission
     /// seen through its pixel corners, and the extra camera rays of those pixels.
-    edges: Vec<bool>,
+    edges: stages::EdgePixels,
     corner_emission: Vec<Vec3>,
     edge_rays: ShadowQueue,
 }
