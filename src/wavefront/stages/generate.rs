@@ -185,9 +185,9 @@ pub fn mark_emitter_edges(
         }
     }
     let marked = edges.marked.iter().filter(|&&m| m).count();
-    if marked > 0 {
-        let budget = (EDGE_BUDGET * tile.pixel_count() as f32) as usize / marked;
-        edges.extra = ctx.edge_samples.min(budget as u32);
+    let budget = (EDGE_BUDGET * tile.pixel_count() as f32) as usize;
+    if let Some(per_pixel) = budget.checked_div(marked) {
+        edges.extra = ctx.edge_samples.min(per_pixel as u32);
     }
     rays.len() as u64
 }
