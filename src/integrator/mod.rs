@@ -70,6 +70,18 @@ impl Integrator {
         }
     }
 
+    /// Whether a hit on a surface that emits nothing, by a ray of depth `depth`, adds nothing
+    /// and ends the path, so that shading may skip it without reconstructing the surface:
+    /// path vertices at `max_depth` only add emission (`path::shade_hit`). Under MIS every
+    /// last-depth BSDF ray (at `-m 1`, one per camera hit) ends this way unless it meets an
+    /// emitter.
+    pub fn ignores_surface_hit(&self, depth: u32, max_depth: u32) -> bool {
+        match *self {
+            Integrator::Path(_) => depth >= max_depth,
+            Integrator::Normals => false,
+        }
+    }
+
     /// The estimator of direct light, for integrators that have one.
     pub fn direct_lighting(&self) -> Option<DirectLighting> {
         match *self {

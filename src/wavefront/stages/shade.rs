@@ -78,6 +78,11 @@ pub fn shade(
                         {
                             Entry::Miss
                         }
+                        None if !matches!(material, Material::Emission { .. })
+                            && ctx.integrator.ignores_surface_hit(depth, ctx.max_depth) =>
+                        {
+                            Entry::Miss
+                        }
                         None => {
                             scratch.surfaces.push(Surface::at(ctx.scene, ray, hit));
                             Entry::Scalar
