@@ -28,7 +28,8 @@
 //! holds more than 256 x 16 = 4096 rays (4096 x 36 bytes = 144 KiB: it stays in L2). Each path
 //! vertex may queue one shadow ray per light sample (`-l` per area light), so the batch shrinks
 //! until a shadow queue holds at most `SHADOW_QUEUE_CAP` rays (8192 x 48 bytes = 384 KiB; at
-//! `-l 32` the queue used to reach 6 MiB per tile).
+//! `-l 32` the queue used to reach 6 MiB per tile). The extra camera rays of a tile's outline
+//! pixels are at most one per camera ray (`stages::generate`), so at most 4096 per pass.
 //!
 //! The queues' SoA columns, the `RenderContext` and the `Surface` at a hit belong to the
 //! integrator, which writes them (`integrator::queues`, `integrator::context`); they are
