@@ -27,17 +27,22 @@ fn square(b: &mut SceneBuilder, z: f32, half: f32, material: u32) {
     b.quad([c(-1.0, -1.0), c(1.0, -1.0), c(1.0, 1.0), c(-1.0, 1.0)], material);
 }
 
-/// A white wall at z = -1 and a small emissive square (radiance 8) in front of it, both facing the
-/// camera (+z); a point light in front lights the wall.
-fn emitter_in_view() -> Scene {
+/// A white wall at z = -1 facing the camera (+z), lit by a point light in front, with
+/// `emitters(builder, emissive material)` added in front of it (radiance 8).
+fn wall_with(emitters: impl FnOnce(&mut SceneBuilder, u32)) -> Scene {
     let mut b = SceneBuilder::new();
     b.scene.camera.view_dir = Vec3::new(0.1, 0.05, 1.0).normalize();
     let white = b.material(Material::Diffuse { albedo: Vec3::splat(0.7) });
     let emit = b.material(Material::Emission { radiance: Vec3::splat(8.0) });
     square(&mut b, -1.0, 1.0, white);
-    square(&mut b, -0.5, 0.1, emit);
+    emitters(&mut b, emit);
     b.light(Light::Point { position: Vec3::new(0.5, 0.5, 1.0), radiance: Vec3::splat(1.0) });
     b.build()
+}
+
+/// A small emissive square in front of the wall, facing the camera.
+fn emitter_in_view() -> Scene {
+    wall_with(|b, emit| square(b, -0.5, 0.1, emit))
 }
 
 fn render(edge_samples: u32, seed: u64) -> RenderOutput {
@@ -141,18 +146,13 @@ fn only_tiles_near_the_emitters_look_for_outlines() {
 
 /// Thirty thin emissive strips in front of the wall: most pixels lie on an outline.
 fn striped_emitter() -> Scene {
-    let mut b = SceneBuilder::new();
-    b.scene.camera.view_dir = Vec3::new(0.1, 0.05, 1.0).normalize();
-    let white = b.material(Material::Diffuse { albedo: Vec3::splat(0.7) });
-    let emit = b.material(Material::Emission { radiance: Vec3::splat(8.0) });
-    square(&mut b, -1.0, 1.0, white);
-    for i in 0..30 {
-        let x = -0.3 + 0.02 * i as f32;
-        let c = |x: f32, y: f32| Vec3::new(x, y, -0.5);
-        b.quad([c(x, -0.3), c(x + 0.01, -0.3), c(x + 0.01, 0.3), c(x, 0.3)], emit);
-    }
-    b.light(Light::Point { position: Vec3::new(0.5, 0.5, 1.0), radiance: Vec3::splat(1.0) });
-    b.build()
+    wall_with(|b, emit| {
+        for i in 0..30 {
+            let x = -0.3 + 0.02 * i as f32;
+            let c = |x: f32, y: f32| Vec3::new(x, y, -0.5);
+            b.quad([c(x, -0.3), c(x + 0.01, -0.3), c(x + 0.01, 0.3), c(x, 0.3)], emit);
+        }
+    })
 }
 
 #[test]

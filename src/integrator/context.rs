@@ -111,6 +111,17 @@ pub fn surface_material(scene: &Scene, prim: u32) -> u32 {
     }
 }
 
+/// The emission a ray sees at its hit: a front-facing emitter's radiance, else zero. The
+/// material first: only an emitter's hit needs its surface.
+#[inline]
+pub fn emission_seen(scene: &Scene, ray: &Ray, hit: &Hit) -> Vec3 {
+    let emitted = scene.materials[surface_material(scene, hit.prim) as usize].emission();
+    if emitted == Vec3::ZERO || Surface::at(scene, ray, hit).ng.dot(ray.dir) >= 0.0 {
+        return Vec3::ZERO;
+    }
+    emitted
+}
+
 impl Surface {
     /// Reconstructs the surface that `ray` hit at `hit`: point, normals and material.
     pub fn at(scene: &Scene, ray: &Ray, hit: &Hit) -> Surface {

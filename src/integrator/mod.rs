@@ -15,7 +15,7 @@ pub mod lights;
 mod path;
 mod queues;
 
-pub use context::{surface_material, RenderContext, ShadeOutputs, Surface};
+pub use context::{emission_seen, surface_material, RenderContext, ShadeOutputs, Surface};
 pub use lights::LightSet;
 pub use path::{DirectLighting, DrawLayout};
 pub use queues::{PathState, RayQueue, ShadowQueue};

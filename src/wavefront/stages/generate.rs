@@ -10,10 +10,10 @@
 //! corners see different emission), so the choice does not depend on the samples it changes and
 //! the estimator stays unbiased; a pixel the corners miss keeps the plain estimate.
 
-use super::super::{PathState, RayQueue, RenderContext, ShadowQueue, Surface, Tile};
+use super::super::{PathState, RayQueue, RenderContext, ShadowQueue, Tile};
 use super::extend::{extend, Coherence};
 use crate::accel::TraceStats;
-use crate::integrator::surface_material;
+use crate::integrator::emission_seen;
 use crate::math::{Hit, Ray, Vec3};
 use crate::sampler::{self, Decision, PathSampler, SamplerKind};
 use crate::scene::{Camera, Scene};
@@ -176,7 +176,12 @@ pub fn mark_emitter_edges(
     }
     extend(ctx, rays, Coherence::of_queue(0, 0, 0, ctx.packets, false), hits, stats);
     seen.clear();
-    seen.extend(rays.rays.iter().zip(hits.iter()).map(|(r, h)| seen_emission(ctx, r, h)));
+    seen.extend(
+        rays.rays
+            .iter()
+            .zip(hits.iter())
+            .map(|(r, h)| h.as_ref().map_or(Vec3::ZERO, |h| emission_seen(ctx.scene, r, h))),
+    );
     for y in 0..tile.height {
         for x in 0..tile.width {
             let c = (y * w + x) as usize;
@@ -217,18 +222,6 @@ pub fn emitter_window(scene: &Scene, camera: &Camera) -> Option<[f32; 4]> {
         window = Some([x0.min(x), y0.min(y), x1.max(x), y1.max(y)]);
     }
     window
-}
-
-/// The emission a camera ray sees at its hit: a front-facing emitter's radiance, else zero.
-fn seen_emission(ctx: &RenderContext, ray: &Ray, hit: &Option<Hit>) -> Vec3 {
-    let Some(hit) = hit else {
-        return Vec3::ZERO;
-    };
-    let emitted = ctx.scene.materials[surface_material(ctx.scene, hit.prim) as usize].emission();
-    if emitted == Vec3::ZERO || Surface::at(ctx.scene, ray, hit).ng.dot(ray.dir) >= 0.0 {
-        return Vec3::ZERO;
-    }
-    emitted
 }
 
 /// The position within the pixel of each of up to `LANES` paths' camera rays; lanes past

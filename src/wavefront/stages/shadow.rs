@@ -1,9 +1,9 @@
 //! Stage 4: any-hit queries for the shadow-ray queue; unblocked rays deliver their radiance.
 
-use super::super::{PathState, RenderContext, ShadowQueue, Surface};
+use super::super::{PathState, RenderContext, ShadowQueue};
 use super::extend::{Coherence, PACKET};
 use crate::accel::TraceStats;
-use crate::integrator::surface_material;
+use crate::integrator::emission_seen;
 use crate::math::{Hit, Vec3};
 
 /// Shadow rays take the coherence of the queue whose hits made them (`Coherence::of_queue`):
@@ -51,15 +51,9 @@ pub fn trace_emission_probes(
         Coherence::Incoherent => ctx.accel.intersect_stream(&probes.rays, hits, stats),
     }
     for (i, hit) in hits.iter().enumerate() {
-        let Some(hit) = hit else {
-            continue;
-        };
-        // The material first: only an emitter's hit needs its normal.
-        let emitted =
-            ctx.scene.materials[surface_material(ctx.scene, hit.prim) as usize].emission();
-        let ray = &probes.rays[i];
-        if emitted != Vec3::ZERO && Surface::at(ctx.scene, ray, hit).ng.dot(ray.dir) < 0.0 {
-            paths.radiance[probes.path[i] as usize] += probes.radiance[i] * emitted;
+        let seen = hit.map_or(Vec3::ZERO, |h| emission_seen(ctx.scene, &probes.rays[i], &h));
+        if seen != Vec3::ZERO {
+            paths.radiance[probes.path[i] as usize] += probes.radiance[i] * seen;
         }
     }
 }
