@@ -184,7 +184,9 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         samples,
         light_samples: config.light_samples,
         edge_samples: config.edge_samples,
-        emitter_window: wavefront::emitter_window(scene, &camera),
+        emitter_window: edge_samples_apply(config)
+            .then(|| wavefront::emitter_window(scene, &camera))
+            .flatten(),
         max_depth: config.max_depth,
         adaptive: config.adaptive,
         seed: config.seed,
@@ -235,6 +237,12 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         image.into_inner().unwrap_or_else(|e| e.into_inner());
     let (width, height) = (config.width, config.height);
     Ok(RenderOutput { width, height, pixels, samples, window, sums, stats, time })
+}
+
+/// Whether a render takes extra camera rays on emitter outlines at all: a path integrator,
+/// more than one sample per pixel (one goes through the centre) and `--edge-samples` above 0.
+fn edge_samples_apply(config: &RenderConfig) -> bool {
+    config.edge_samples > 0 && config.spp > 1 && config.integrator.direct_lighting().is_some()
 }
 
 /// The sample range and the pixel window of `config`, checked against the image and `-s`.

@@ -33,8 +33,8 @@ pub struct RenderContext<'a> {
     /// `wavefront::stages::generate`).
     pub edge_samples: u32,
     /// The image rectangle (x0, y0, x1, y1 in pixels) outside which no camera ray can see
-    /// emissive geometry, from the emitters' projections; `None`: none can be seen anywhere
-    /// (`wavefront::emitter_window`).
+    /// emissive geometry, from the emitters' projections (`wavefront::emitter_window`); `None`
+    /// when none can be seen anywhere or the render takes no extra camera rays.
     pub emitter_window: Option<[f32; 4]>,
     /// Maximum path depth (`-m`): vertices reached at this depth add only emission and spawn no
     /// rays.

@@ -271,7 +271,7 @@ pub fn shade_diffuse(
     // Compared lane by lane: comparing the arrays whole loaded them with one vector load
     // across the compiler's narrower stores of `block_lane`, a failed store-to-load forward
     // that held 8% of this function's samples at `-m 1`.
-    let in_order = (0..LANES).all(|l| lanes.queue[l] % DRAW_BLOCK == l);
+    let in_order = block_lane.iter().enumerate().all(|(l, &b)| b == l);
     let number = |slot: usize, c: usize| -> V {
         let row = &block[slot * DRAW_BLOCK..(slot + 1) * DRAW_BLOCK];
         let a: Lanes = if in_order {

@@ -165,10 +165,8 @@ pub fn shade_hit(
 
     if let Material::Emission { radiance } = *material {
         if cos_out > 0.0 {
-            let mut w = emission_weight(direct, ctx, depth, surface, cos_out, paths.bsdf_pdf[pi]);
-            if depth == 0 {
-                w *= paths.zero_bounce_weight[pi];
-            }
+            let (prev_pdf, zero_bounce) = (paths.bsdf_pdf[pi], paths.zero_bounce_weight[pi]);
+            let w = emission_weight(direct, ctx, depth, surface, cos_out, prev_pdf, zero_bounce);
             paths.radiance[pi] += w * paths.throughput[pi] * radiance;
         }
         return; // Emitters reflect nothing.
@@ -227,7 +225,8 @@ pub(super) fn emission_counts(direct: DirectLighting, depth: u32, prev_bsdf_pdf:
     depth == 0 || prev_bsdf_pdf == 0.0 || direct == DirectLighting::Mis
 }
 
-/// The MIS / course weight of emission seen at a path vertex (see the module docs).
+/// The MIS / course weight of emission seen at a path vertex (see the module docs); seen by
+/// the camera, the path's `zero_bounce` weight (1, or its share with extra camera rays).
 fn emission_weight(
     direct: DirectLighting,
     ctx: &RenderContext,
@@ -235,13 +234,16 @@ fn emission_weight(
     surface: &Surface,
     cos_l: f32,
     prev_bsdf_pdf: f32,
+    zero_bounce: f32,
 ) -> f32 {
     if !emission_counts(direct, depth, prev_bsdf_pdf) {
         return 0.0;
     }
-    let after_specular = prev_bsdf_pdf == 0.0;
-    if depth == 0 || after_specular {
-        return 1.0;
+    if depth == 0 {
+        return zero_bounce;
+    }
+    if prev_bsdf_pdf == 0.0 {
+        return 1.0; // After a specular bounce.
     }
     // MIS; rays are unit length, so the hit distance is the ray parameter.
     let light_pdf = ctx.lights.emitter_pdf(ctx.scene, surface.prim, surface.t, cos_l);

@@ -135,9 +135,8 @@ fn queue_edge_rays(
 }
 
 /// Marks in `edges` the tile's pixels whose four corners see different emission (an emitter's
-/// outline, or an occluder's in front of one), when extra camera rays apply at all: a path
-/// integrator, more than one sample per pixel (one goes through the centre), `--edge-samples`
-/// above 0, and a tile that the emitters' projection reaches (`emitter_window`); and sets how
+/// outline, or an occluder's in front of one), in a tile that the emitters' projection reaches
+/// (`RenderContext::emitter_window`, `None` when the render takes no extra rays); and sets how
 /// many extra rays their samples take (`EdgePixels::extra`, within `EDGE_BUDGET`). Everything
 /// here depends on the tile alone, never on the samples. `rays`, `hits` and `seen` are scratch
 /// space; returns the number of corner rays traced.
@@ -153,16 +152,13 @@ pub fn mark_emitter_edges(
     edges.marked.clear();
     edges.marked.resize(tile.pixel_count(), false);
     edges.extra = 0;
-    let applies = ctx.edge_samples > 0
-        && ctx.spp > 1
-        && ctx.integrator.direct_lighting().is_some()
-        && ctx.emitter_window.is_some_and(|[x0, y0, x1, y1]| {
-            // The tile's pixels, with a pixel's margin for the window's rounding.
-            let (tx0, ty0) = (tile.x0 as f32 - 1.0, tile.y0 as f32 - 1.0);
-            let (tx1, ty1) =
-                ((tile.x0 + tile.width) as f32 + 1.0, (tile.y0 + tile.height) as f32 + 1.0);
-            tx0 <= x1 && x0 <= tx1 && ty0 <= y1 && y0 <= ty1
-        });
+    let applies = ctx.emitter_window.is_some_and(|[x0, y0, x1, y1]| {
+        // The tile's pixels, with a pixel's margin for the window's rounding.
+        let (tx0, ty0) = (tile.x0 as f32 - 1.0, tile.y0 as f32 - 1.0);
+        let (tx1, ty1) =
+            ((tile.x0 + tile.width) as f32 + 1.0, (tile.y0 + tile.height) as f32 + 1.0);
+        tx0 <= x1 && x0 <= tx1 && ty0 <= y1 && y0 <= ty1
+    });
     if !applies {
         return 0;
     }
