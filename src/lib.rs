@@ -70,7 +70,7 @@
 //! sampler      PCG32, Sobol, the per-path random numbers
 //! scene        the scene model, COLLADA loader, camera (no limits of accel)
 //! procedural   generated scenes (COLLADA text)
-//! geometry     SoA triangles, Möller-Trumbore, spheres, the primitive id (`geometry::prim`)
+//! geometry     SoA triangles, the watertight triangle test, spheres, the primitive id (`geometry::prim`)
 //! accel        binned-SAH BVH, 8-wide nodes, single-ray and packet traversal, its limits
 //! film         image output (PNG tone-mapped, EXR linear)
 //! integrator   BSDFs, lights, estimators; the render context, surface and queues they write

@@ -33,7 +33,7 @@ fn random_rays(bounds: Aabb, n: usize, seed: u64) -> Vec<Ray> {
 }
 
 /// Closest hits and occlusion of the BVH equal brute force for every ray: same distance
-/// bit for bit (both run the same Möller-Trumbore arithmetic), and the same primitive unless
+/// bit for bit (both run the same triangle-test arithmetic), and the same primitive unless
 /// two primitives tie at that distance.
 fn assert_bvh_matches_brute_force(name: &str, scene: &Scene, rays: usize) {
     let bvh = Accel::build(scene, AccelKind::Bvh);

@@ -1,8 +1,8 @@
-//! One ray against the triangles of a leaf, 8 at a time (the 8-wide Möller-Trumbore test over
-//! a triangle block's rows).
+//! One ray against the triangles of a leaf, 8 at a time (the 8-wide watertight test over a
+//! triangle block's rows, taken in the ray's axis order).
 //!
-//! Hits in front of the leaf box. Möller-Trumbore's rounding margin (`moller_trumbore`)
-//! accepts hits a few ulps outside a triangle, so a hit can lie in front of its own leaf box.
+//! Hits in front of the leaf box. A hit's distance carries the rounding of the test
+//! (`watertight`), so a hit can lie a few ulps in front of its own leaf box.
 //! Such a hit would be found or not depending on the visiting order: a leaf is culled when its
 //! entry distance is beyond the best hit so far (`near > t_max * BOX_INFLATE`), and packets
 //! and single rays reach leaves in different orders. So a hit at `t` in a leaf entered at
@@ -15,30 +15,47 @@ use wide::f32x8;
 
 use super::packet::BOX_INFLATE;
 use super::TraceStats;
-use crate::geometry::moller_trumbore::{intersect_simd, splat3, V3};
 use crate::geometry::triangles::{TriangleBlock, TriangleSoa, LANES};
+use crate::geometry::watertight::{axes, broadcast, intersect_simd, permute, Shear, V3};
 use crate::math::{Hit, Ray};
 
 /// Every lane on: the lanes outside the leaf are masked off after the test instead.
 const ALL: f32x8 = f32x8::new([f32::from_bits(!0); LANES]);
 
-#[inline(always)]
-fn rows(r: &[[f32; LANES]; 3]) -> V3<f32x8> {
-    V3 { x: f32x8::new(r[0]), y: f32x8::new(r[1]), z: f32x8::new(r[2]) }
+/// A ray prepared for the test: its axis order, permuted origin and shear, broadcast.
+struct Prepared {
+    axes: [usize; 3],
+    origin: V3<f32x8>,
+    shear: Shear<f32x8>,
 }
 
-/// The ray (origin and direction broadcast) against all eight slots of `block` within
-/// [t_min, t_max]: hit mask, t, u, v. Lanes outside the leaf are masked off by the caller.
+impl Prepared {
+    #[inline(always)]
+    fn new(ray: &Ray) -> Prepared {
+        let axes = axes(ray.dir);
+        let shear = Shear::of(broadcast(permute(ray.dir, axes)), f32x8::splat(1.0));
+        Prepared { axes, origin: broadcast(permute(ray.origin, axes)), shear }
+    }
+
+    /// Rows x, y, z of a block's vertex in the ray's axis order.
+    #[inline(always)]
+    fn rows(&self, r: &[[f32; LANES]; 3]) -> V3<f32x8> {
+        let [kx, ky, kz] = self.axes;
+        V3 { x: f32x8::new(r[kx]), y: f32x8::new(r[ky]), z: f32x8::new(r[kz]) }
+    }
+}
+
+/// The ray against all eight slots of `block` within [t_min, t_max]: hit mask, t, u, v.
+/// Lanes outside the leaf are masked off by the caller.
 #[inline(always)]
 fn test_block(
-    o: V3<f32x8>,
-    d: V3<f32x8>,
+    ray: &Prepared,
     block: &TriangleBlock,
     t_min: f32,
     t_max: f32,
 ) -> (f32x8, f32x8, f32x8, f32x8) {
-    let (v0, e1, e2) = (rows(&block.v0), rows(&block.e1), rows(&block.e2));
-    intersect_simd(o, d, v0, e1, e2, f32x8::splat(t_min), f32x8::splat(t_max), ALL)
+    let tri = [ray.rows(&block.v0), ray.rows(&block.v1), ray.rows(&block.v2)];
+    intersect_simd(ray.origin, &ray.shear, tri, f32x8::splat(t_min), f32x8::splat(t_max), ALL)
 }
 
 /// Calls `test(block, lanes)` for each block the slots `first .. first + count` occupy, with
@@ -79,11 +96,11 @@ pub(super) fn intersect_leaf(
     best: &mut Option<Hit>,
     stats: &mut TraceStats,
 ) {
-    let (o, d) = (splat3(ray.origin), splat3(ray.dir));
+    let prepared = Prepared::new(ray);
     let near_v = f32x8::splat(near);
     stats.triangle_tests += count as u64;
     leaf_blocks(tris, first, count, |block, lanes| {
-        let (mask, t, u, v) = test_block(o, d, block, ray.t_min, ray.t_max);
+        let (mask, t, u, v) = test_block(&prepared, block, ray.t_min, ray.t_max);
         let mut bits = mask.to_bitmask() & lanes;
         if bits == 0 {
             return false;
@@ -125,10 +142,10 @@ pub(super) fn occluded_leaf(
     ray: &Ray,
     stats: &mut TraceStats,
 ) -> bool {
-    let (o, d) = (splat3(ray.origin), splat3(ray.dir));
+    let prepared = Prepared::new(ray);
     leaf_blocks(tris, first, count, |block, lanes| {
         stats.triangle_tests += lanes.count_ones() as u64;
-        let (mask, ..) = test_block(o, d, block, ray.t_min, ray.t_max);
+        let (mask, ..) = test_block(&prepared, block, ray.t_min, ray.t_max);
         mask.to_bitmask() & lanes != 0
     })
 }

@@ -6,7 +6,7 @@
 //! of the slice, or switched off by the caller, are inactive and never produce a hit or count
 //! in `TraceStats`.
 
-use crate::geometry::moller_trumbore::V3;
+use crate::geometry::watertight::{PacketAxes, Shear, V3};
 use crate::math::{Hit, Ray, Vec3};
 use crate::simd::SimdF32;
 
@@ -20,7 +20,7 @@ pub const MAX_W: usize = 16;
 pub const MIN_DIR: f32 = 1e-18;
 
 /// The box test's tolerance: the exit distance is enlarged by this factor (about 16 ulps) so
-/// that rounding in the slab distances never culls a box whose triangles Möller-Trumbore hits
+/// that rounding in the slab distances never culls a box whose triangles the triangle test hits
 /// (Ize, "Robust BVH Ray Traversal", uses 1 + 2 gamma_3 for the slab rounding alone; the
 /// triangle test's own t carries a few ulps more). Conservative culling is what lets packet
 /// and single-ray traversal, which visit nodes in different orders, agree exactly.
@@ -88,6 +88,12 @@ pub struct RayPacket<V: SimdF32> {
     pub t_max: V,
     /// Lane mask: all-ones for rays to trace.
     pub active: V,
+    /// Each lane's axis order for the triangle test (`watertight`).
+    pub(crate) axes: PacketAxes<V>,
+    /// The origins in each lane's axis order.
+    pub(crate) origin_in_axes: V3<V>,
+    /// Each lane's shear for the triangle test.
+    pub(crate) shear: Shear<V>,
 }
 
 impl<V: SimdF32> RayPacket<V> {
@@ -110,6 +116,7 @@ impl<V: SimdF32> RayPacket<V> {
         let origin = V3 { x: ox, y: oy, z: oz };
         let inv_dir = V3 { x: safe_recip_v(dir.x), y: safe_recip_v(dir.y), z: safe_recip_v(dir.z) };
         let (neg_o_inv, slack) = slab_terms(&origin, &inv_dir);
+        let axes = PacketAxes::of(&dir, filled & active_bits);
         RayPacket {
             origin,
             dir,
@@ -119,6 +126,9 @@ impl<V: SimdF32> RayPacket<V> {
             t_min,
             t_max,
             active: V::from_bitmask(filled & active_bits),
+            origin_in_axes: axes.permute(origin),
+            shear: Shear::of(axes.permute(dir), V::splat(1.0)),
+            axes,
         }
     }
 

@@ -6,7 +6,7 @@
 //! children are visited nearest first (by the nearest lane's entry
 //! distance) with one stack shared by the packet, each entry remembering which lanes entered
 //! the subtree and at what distance. Leaves test one triangle against all W rays with the
-//! same Möller-Trumbore core as the single-ray path, so t, u, v are bit-identical. When no
+//! same watertight test as the single-ray path, so t, u, v are bit-identical. When no
 //! more than `fallback` lanes enter a subtree, those lanes finish it with single-ray
 //! traversal (`traverse_single::*_subtree`): a mostly-empty packet pays W lanes of work per
 //! box for a few rays' worth of benefit.
@@ -23,8 +23,8 @@ use super::packet_interval::PacketInterval;
 use super::traverse_single::{self, Entry as SingleEntry};
 use super::wide_node::{leaf_range, WideNode, ARITY, LEAF_BIT};
 use super::TraceStats;
-use crate::geometry::moller_trumbore::{intersect_simd, splat3, V3};
 use crate::geometry::triangles::{TriangleSoa, LANES};
+use crate::geometry::watertight::{intersect_simd, V3};
 use crate::math::{Hit, Ray};
 use crate::simd::SimdF32;
 
@@ -78,10 +78,10 @@ fn slab<V: SimdF32>(p: &RayPacket<V>, min: [f32; 3], max: [f32; 3], t_max: V) ->
     (near.simd_le(far), near)
 }
 
-/// (v0, e1, e2) of slot `i`, each broadcast to every lane.
+/// The vertices of slot `i`, broadcast to every lane in each lane's axis order.
 #[inline(always)]
-fn splat_tri<V: SimdF32>(tris: &TriangleSoa, i: usize) -> [V3<V>; 3] {
-    tris.vertex_edges(i).map(splat3)
+fn splat_tri<V: SimdF32>(tris: &TriangleSoa, i: usize, p: &RayPacket<V>) -> [V3<V>; 3] {
+    tris.vertices(i).map(|v| p.axes.permute_splat(v))
 }
 
 /// One stack entry: a subtree (a child reference, as in `WideNode`), the lanes that entered
@@ -373,8 +373,9 @@ fn intersect_leaf<V: SimdF32>(
     let valid = V::from_bitmask(lanes);
     let inflate = V::splat(BOX_INFLATE);
     for i in first..first + count {
-        let [v0, e1, e2] = splat_tri(tris, i);
-        let (mask, t, u, v) = intersect_simd(p.origin, p.dir, v0, e1, e2, p.t_min, p.t_max, valid);
+        let tri = splat_tri(tris, i, p);
+        let (mask, t, u, v) =
+            intersect_simd(p.origin_in_axes, &p.shear, tri, p.t_min, p.t_max, valid);
         // Hits in front of the leaf box do not count (`leaf`).
         let mask = mask & (t * inflate).simd_ge(near);
         let take = mask.bitmask();
@@ -513,9 +514,15 @@ fn occluded_leaf<V: SimdF32>(
     let mut open = lanes;
     for i in first..first + count {
         stats.triangle_tests += open.count_ones() as u64;
-        let [v0, e1, e2] = splat_tri(tris, i);
-        let (mask, ..) =
-            intersect_simd(p.origin, p.dir, v0, e1, e2, p.t_min, p.t_max, V::from_bitmask(open));
+        let tri = splat_tri(tris, i, p);
+        let (mask, ..) = intersect_simd(
+            p.origin_in_axes,
+            &p.shear,
+            tri,
+            p.t_min,
+            p.t_max,
+            V::from_bitmask(open),
+        );
         open &= !mask.bitmask();
         if open == 0 {
             break;

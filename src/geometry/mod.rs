@@ -1,10 +1,10 @@
-//! Primitive storage and ray-primitive tests: SoA triangles with Möller-Trumbore (scalar, one
+//! Primitive storage and ray-primitive tests: SoA triangles with the watertight test (scalar, one
 //! ray against 8 triangles, and 8 rays against one triangle), the course's analytic spheres, and
 //! the primitive id that names either (`prim`).
 
-pub mod moller_trumbore;
 pub mod prim;
 pub mod sphere;
 pub mod triangles;
+pub mod watertight;
 
 pub use triangles::TriangleSoa;

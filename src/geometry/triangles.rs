@@ -1,17 +1,15 @@
 //! Triangles in SoA blocks of eight (AoSoA), in BVH leaf order.
 //!
-//! Each triangle is stored as its first vertex and its two edges (v0, e1 = v1 - v0,
-//! e2 = v2 - v0). Möller-Trumbore needs exactly these, so a leaf test loads nine 8-wide
-//! vectors and does no subtraction per ray. The alternative, three vertex columns, costs six
-//! subtractions per triangle per ray; edges also keep the test identical whether one ray meets
-//! eight triangles or eight rays meet one.
+//! Each triangle is stored as its three vertices, exactly as the scene gives them: the
+//! watertight test (`watertight`) needs every vertex bit-identical in the triangles that share
+//! it, which `v0 + (v1 - v0)` would not be. (Möller-Trumbore stored v0 and two edges.)
 //!
 //! Why blocks: a block holds the nine 8-lane component rows and the eight scene indices of
 //! eight slots in 320 contiguous, 64-byte-aligned bytes (five cache lines). A leaf lies inside
 //! one block (the build packs leaves so, `accel::build::pack_leaves`), so one leaf test reads
 //! five neighbouring lines. With nine separate columns it read nine to eighteen lines from
 //! nine places in memory, which is what incoherent rays pay for most (PERF.md, "Triangle
-//! blocks"). Slots no leaf uses are degenerate all-zero triangles: det = 0, never a hit.
+//! blocks"). Slots no leaf uses are degenerate all-zero triangles: every edge function is 0, never a hit.
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -22,16 +20,16 @@ pub const LANES: usize = 8;
 /// `prim` of a slot that holds no triangle.
 pub const NO_PRIM: u32 = u32::MAX;
 
-/// Eight triangle slots, one SIMD lane each: rows are [x, y, z] of v0, e1 and e2.
+/// Eight triangle slots, one SIMD lane each: rows are [x, y, z] of v0, v1 and v2.
 #[repr(C, align(64))]
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct TriangleBlock {
     /// The first vertex: rows x, y, z, one lane per slot.
     pub v0: [[f32; LANES]; 3],
-    /// The first edge, `v1 - v0`: rows x, y, z.
-    pub e1: [[f32; LANES]; 3],
-    /// The second edge, `v2 - v0`: rows x, y, z.
-    pub e2: [[f32; LANES]; 3],
+    /// The second vertex: rows x, y, z.
+    pub v1: [[f32; LANES]; 3],
+    /// The third vertex: rows x, y, z.
+    pub v2: [[f32; LANES]; 3],
     /// Scene triangle index of each slot (`NO_PRIM` for an unused slot).
     pub prim: [u32; LANES],
 }
@@ -41,8 +39,8 @@ const _: () = assert!(std::mem::size_of::<TriangleBlock>() == 320);
 impl TriangleBlock {
     const EMPTY: TriangleBlock = TriangleBlock {
         v0: [[0.0; LANES]; 3],
-        e1: [[0.0; LANES]; 3],
-        e2: [[0.0; LANES]; 3],
+        v1: [[0.0; LANES]; 3],
+        v2: [[0.0; LANES]; 3],
         prim: [NO_PRIM; LANES],
     };
 }
@@ -81,8 +79,7 @@ impl TriangleSoa {
             let mut block = TriangleBlock::EMPTY;
             for (lane, &p) in slots.iter().enumerate().filter(|(_, &p)| p != NO_PRIM) {
                 let [a, b, c] = corners(p as usize);
-                for (row, v) in [(&mut block.v0, a), (&mut block.e1, b - a), (&mut block.e2, c - a)]
-                {
+                for (row, v) in [(&mut block.v0, a), (&mut block.v1, b), (&mut block.v2, c)] {
                     for k in 0..3 {
                         row[k][lane] = v[k];
                     }
@@ -117,12 +114,12 @@ impl TriangleSoa {
         (&self.blocks[i / LANES], i % LANES)
     }
 
-    /// (v0, e1, e2) of slot `i`.
+    /// The vertices (v0, v1, v2) of slot `i`.
     #[inline(always)]
-    pub(crate) fn vertex_edges(&self, i: usize) -> [Vec3; 3] {
+    pub(crate) fn vertices(&self, i: usize) -> [Vec3; 3] {
         let (b, l) = self.slot(i);
         let get = |row: &[[f32; LANES]; 3]| Vec3::new(row[0][l], row[1][l], row[2][l]);
-        [get(&b.v0), get(&b.e1), get(&b.e2)]
+        [get(&b.v0), get(&b.v1), get(&b.v2)]
     }
 
     /// Scene triangle index of slot `i`.
@@ -142,7 +139,7 @@ impl TriangleSoa {
 mod tests {
     use super::*;
 
-    /// Slots map to (block, lane) in order, gaps stay empty, and edges are stored.
+    /// Slots map to (block, lane) in order, gaps stay empty, and vertices are stored as given.
     #[test]
     fn slots_fill_blocks_in_order() {
         let corners = |p: usize| {
@@ -158,9 +155,10 @@ mod tests {
         assert_eq!(t.prim(3), 7);
         assert_eq!(t.prim(9), 2);
         assert_eq!(t.prim(4), NO_PRIM);
-        assert_eq!(t.vertex_edges(3), [Vec3::splat(7.0), Vec3::X, Vec3::Y]);
-        assert_eq!(t.vertex_edges(9)[0], Vec3::splat(2.0));
-        assert_eq!(t.vertex_edges(8), [Vec3::ZERO; 3]);
+        let seven = Vec3::splat(7.0);
+        assert_eq!(t.vertices(3), [seven, seven + Vec3::X, seven + Vec3::Y]);
+        assert_eq!(t.vertices(9)[0], Vec3::splat(2.0));
+        assert_eq!(t.vertices(8), [Vec3::ZERO; 3]);
         assert_eq!(t.memory_bytes(), 640);
     }
 }

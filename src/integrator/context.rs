@@ -55,7 +55,7 @@ pub struct RenderContext<'a> {
 
 impl RenderContext<'_> {
     /// How far a ray spawned at `p` must start from the surface to clear its own rounding
-    /// error. A Möller-Trumbore hit point is off by at most about gamma_7 |p| ~ 3.5 ulps of its
+    /// error. A hit point is off by at most about gamma_7 |p| ~ 3.5 ulps of its
     /// largest coordinate (pbrt-v4, 6.8), so the offset is 8 ulps of |p|, and never less than
     /// 1e-5 of the scene's diagonal. Both scale with the scene, so moving a scene far from the
     /// origin or rescaling it changes nothing beyond rounding (tests/stability.rs).

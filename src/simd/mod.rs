@@ -1,7 +1,7 @@
 //! Lane-width-generic SIMD over `wide::f32x4`, `wide::f32x8` and [`F32x16`] (two `f32x8`
 //! halves), in the spirit of Embree's `vfloat<N>`: kernels are written once against
 //! [`SimdF32`] and instantiated per width, so the 4-, 8- and 16-wide packet paths (and the
-//! scalar Möller-Trumbore, through the arithmetic traits alone) share one body of code.
+//! scalar triangle test, through the arithmetic traits alone) share one body of code.
 //!
 //! Masks are float vectors whose lanes are all-ones or all-zeros bits, as `wide`'s comparisons
 //! return them.
@@ -14,7 +14,7 @@ use std::ops::{Add, BitAnd, BitOr, Div, Mul, Sub};
 use wide::u32x16;
 use wide::{f32x4, f32x8, u32x4, u32x8};
 
-/// The arithmetic shared by f32 and the lane types: what the generic Möller-Trumbore core
+/// The arithmetic shared by f32 and the lane types: what the generic triangle-test core
 /// needs (so one function serves scalar and SIMD tests).
 pub trait Arith: Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> {
     /// Absolute value (lane by lane for the SIMD types).
