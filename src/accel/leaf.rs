@@ -16,25 +16,29 @@ use wide::f32x8;
 use super::packet::BOX_INFLATE;
 use super::TraceStats;
 use crate::geometry::triangles::{TriangleBlock, TriangleSoa, LANES};
-use crate::geometry::watertight::{axes, broadcast, intersect_simd, permute, Shear, V3};
+use crate::geometry::watertight::{axes, intersect_simd, permute, Shear, V3};
 use crate::math::{Hit, Ray};
 
 /// Every lane on: the lanes outside the leaf are masked off after the test instead.
 const ALL: f32x8 = f32x8::new([f32::from_bits(!0); LANES]);
 
-/// A ray prepared for the test: its axis order, permuted origin and shear, broadcast.
-struct Prepared {
+/// What the triangle test needs of one ray, computed once per ray (the traversal keeps it
+/// beside its box-test terms): the axis order, and the origin and shear in that order. Scalars,
+/// broadcast where a leaf uses them.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct LeafRay {
     axes: [usize; 3],
-    origin: V3<f32x8>,
-    shear: Shear<f32x8>,
+    origin: [f32; 3],
+    shear: [f32; 3],
 }
 
-impl Prepared {
+impl LeafRay {
     #[inline(always)]
-    fn new(ray: &Ray) -> Prepared {
+    pub(super) fn new(ray: &Ray) -> LeafRay {
         let axes = axes(ray.dir);
-        let shear = Shear::of(broadcast(permute(ray.dir, axes)), f32x8::splat(1.0));
-        Prepared { axes, origin: broadcast(permute(ray.origin, axes)), shear }
+        let s = Shear::of(permute(ray.dir, axes), 1.0);
+        let o = permute(ray.origin, axes);
+        LeafRay { axes, origin: [o.x, o.y, o.z], shear: [s.sx, s.sy, s.sz] }
     }
 
     /// Rows x, y, z of a block's vertex in the ray's axis order.
@@ -49,13 +53,16 @@ impl Prepared {
 /// Lanes outside the leaf are masked off by the caller.
 #[inline(always)]
 fn test_block(
-    ray: &Prepared,
+    ray: &LeafRay,
     block: &TriangleBlock,
     t_min: f32,
     t_max: f32,
 ) -> (f32x8, f32x8, f32x8, f32x8) {
     let tri = [ray.rows(&block.v0), ray.rows(&block.v1), ray.rows(&block.v2)];
-    intersect_simd(ray.origin, &ray.shear, tri, f32x8::splat(t_min), f32x8::splat(t_max), ALL)
+    let [ox, oy, oz] = ray.origin.map(f32x8::splat);
+    let [sx, sy, sz] = ray.shear.map(f32x8::splat);
+    let (origin, shear) = (V3 { x: ox, y: oy, z: oz }, Shear { sx, sy, sz });
+    intersect_simd(origin, &shear, tri, f32x8::splat(t_min), f32x8::splat(t_max), ALL)
 }
 
 /// Calls `test(block, lanes)` for each block the slots `first .. first + count` occupy, with
@@ -92,15 +99,15 @@ pub(super) fn intersect_leaf(
     first: usize,
     count: usize,
     near: f32,
+    leaf_ray: &LeafRay,
     ray: &mut Ray,
     best: &mut Option<Hit>,
     stats: &mut TraceStats,
 ) {
-    let prepared = Prepared::new(ray);
     let near_v = f32x8::splat(near);
     stats.triangle_tests += count as u64;
     leaf_blocks(tris, first, count, |block, lanes| {
-        let (mask, t, u, v) = test_block(&prepared, block, ray.t_min, ray.t_max);
+        let (mask, t, u, v) = test_block(leaf_ray, block, ray.t_min, ray.t_max);
         let mut bits = mask.to_bitmask() & lanes;
         if bits == 0 {
             return false;
@@ -139,13 +146,13 @@ pub(super) fn occluded_leaf(
     tris: &TriangleSoa,
     first: usize,
     count: usize,
+    leaf_ray: &LeafRay,
     ray: &Ray,
     stats: &mut TraceStats,
 ) -> bool {
-    let prepared = Prepared::new(ray);
     leaf_blocks(tris, first, count, |block, lanes| {
         stats.triangle_tests += lanes.count_ones() as u64;
-        let (mask, ..) = test_block(&prepared, block, ray.t_min, ray.t_max);
+        let (mask, ..) = test_block(leaf_ray, block, ray.t_min, ray.t_max);
         mask.to_bitmask() & lanes != 0
     })
 }

@@ -17,14 +17,14 @@
 //! ray.
 
 use super::build::MAX_DEPTH;
-use super::leaf;
+use super::leaf::{self, LeafRay};
 use super::packet::{PacketHits, RayPacket, BOX_INFLATE, MAX_W};
 use super::packet_interval::PacketInterval;
 use super::traverse_single::{self, Entry as SingleEntry};
 use super::wide_node::{leaf_range, WideNode, ARITY, LEAF_BIT};
 use super::TraceStats;
 use crate::geometry::triangles::{TriangleSoa, LANES};
-use crate::geometry::watertight::{intersect_simd, V3};
+use crate::geometry::watertight::{broadcast, intersect_simd, splat3, V3};
 use crate::math::{Hit, Ray};
 use crate::simd::SimdF32;
 
@@ -78,10 +78,14 @@ fn slab<V: SimdF32>(p: &RayPacket<V>, min: [f32; 3], max: [f32; 3], t_max: V) ->
     (near.simd_le(far), near)
 }
 
-/// The vertices of slot `i`, broadcast to every lane in each lane's axis order.
+/// The vertices of slot `i`, broadcast to every lane in each lane's axis order: read in that
+/// order when the lanes share it, else permuted lane by lane.
 #[inline(always)]
 fn splat_tri<V: SimdF32>(tris: &TriangleSoa, i: usize, p: &RayPacket<V>) -> [V3<V>; 3] {
-    tris.vertices(i).map(|v| p.axes.permute_splat(v))
+    match p.axes.uniform {
+        Some(k) => tris.vertices_in(i, k).map(|[x, y, z]| broadcast(V3 { x, y, z })),
+        None => tris.vertices(i).map(|v| p.axes.permute(splat3(v))),
+    }
 }
 
 /// One stack entry: a subtree (a child reference, as in `WideNode`), the lanes that entered
@@ -265,7 +269,16 @@ pub fn intersect<V: SimdF32>(
                 let (first, count) = leaf_range(cur.child);
                 if leaf_by_lane(lanes, count) {
                     lane_by_lane(lanes, cur.near, p, &mut hits, |ray, best, near| {
-                        leaf::intersect_leaf(tris, first, count, near, ray, best, stats)
+                        leaf::intersect_leaf(
+                            tris,
+                            first,
+                            count,
+                            near,
+                            &LeafRay::new(ray),
+                            ray,
+                            best,
+                            stats,
+                        )
                     });
                 } else {
                     intersect_leaf(tris, first, count, cur.near, lanes, p, &mut hits, stats);
@@ -452,7 +465,7 @@ pub fn occluded<V: SimdF32>(
                 let (first, count) = leaf_range(child);
                 if leaf_by_lane(lanes, count) {
                     blocked |= blocked_lane_by_lane(lanes, p, |ray| {
-                        leaf::occluded_leaf(tris, first, count, ray, stats)
+                        leaf::occluded_leaf(tris, first, count, &LeafRay::new(ray), ray, stats)
                     });
                 } else {
                     blocked |= occluded_leaf(tris, first, count, lanes, p, stats);

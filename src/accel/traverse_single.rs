@@ -13,7 +13,7 @@
 use std::mem::MaybeUninit;
 
 use super::build::MAX_DEPTH;
-use super::leaf::{intersect_leaf, occluded_leaf};
+use super::leaf::{intersect_leaf, occluded_leaf, LeafRay};
 use super::packet::{safe_recip, slab_terms, BOX_INFLATE};
 use super::wide_node::{leaf_range, ChildLanes, WideNode, ARITY, LEAF_BIT};
 use super::TraceStats;
@@ -37,6 +37,8 @@ pub(super) struct WideRay {
     slack: ChildLanes,
     neg: [bool; 3],
     t_min: ChildLanes,
+    /// The ray as the triangle test takes it.
+    pub(super) leaf: LeafRay,
 }
 
 impl WideRay {
@@ -56,6 +58,7 @@ impl WideRay {
             slack,
             neg: inv.map(f32::is_sign_negative),
             t_min: ChildLanes::splat(ray.t_min),
+            leaf: LeafRay::new(ray),
         }
     }
 
@@ -259,7 +262,7 @@ pub(crate) fn intersect_subtree(
         }
         if cur.child & LEAF_BIT != 0 {
             let (first, count) = leaf_range(cur.child);
-            intersect_leaf(tris, first, count, cur.t, ray, best, stats);
+            intersect_leaf(tris, first, count, cur.t, &wr.leaf, ray, best, stats);
         }
         // Pop the next subtree that can still hold a nearer hit (the box test's tolerance, so
         // nothing is dropped that the box test would keep).
@@ -339,7 +342,7 @@ pub(crate) fn occluded_subtree(
         }
         if child & LEAF_BIT != 0 && {
             let (first, count) = leaf_range(child);
-            occluded_leaf(tris, first, count, ray, stats)
+            occluded_leaf(tris, first, count, &wr.leaf, ray, stats)
         } {
             stats.node_tests += node_tests;
             return true;
@@ -413,7 +416,17 @@ impl ClosestWalk {
             }
         } else {
             let (first, count) = leaf_range(self.cur.child);
-            intersect_leaf(tris, first, count, self.cur.t, &mut self.ray, &mut self.best, stats);
+            let leaf_ray = &self.wr.leaf;
+            intersect_leaf(
+                tris,
+                first,
+                count,
+                self.cur.t,
+                leaf_ray,
+                &mut self.ray,
+                &mut self.best,
+                stats,
+            );
         }
         loop {
             let Some(e) = self.stack.pop() else {
@@ -520,7 +533,7 @@ impl AnyWalk {
             }
         } else {
             let (first, count) = leaf_range(self.child);
-            if occluded_leaf(tris, first, count, &self.ray, stats) {
+            if occluded_leaf(tris, first, count, &self.wr.leaf, &self.ray, stats) {
                 return Some(true);
             }
         }

@@ -122,6 +122,14 @@ impl TriangleSoa {
         [get(&b.v0), get(&b.v1), get(&b.v2)]
     }
 
+    /// The vertices of slot `i` with their components in the order `k` ([kx, ky, kz]).
+    #[inline(always)]
+    pub(crate) fn vertices_in(&self, i: usize, k: [usize; 3]) -> [[f32; 3]; 3] {
+        let (b, l) = self.slot(i);
+        let get = |row: &[[f32; LANES]; 3]| [row[k[0]][l], row[k[1]][l], row[k[2]][l]];
+        [get(&b.v0), get(&b.v1), get(&b.v2)]
+    }
+
     /// Scene triangle index of slot `i`.
     #[inline(always)]
     pub fn prim(&self, i: usize) -> u32 {

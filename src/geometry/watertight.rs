@@ -68,21 +68,15 @@ impl<T: Copy + Add<Output = T> + Sub<Output = T> + Mul<Output = T>> V3<T> {
 }
 
 /// The ray's dominant axis: the largest |d| component, the earlier axis only when strictly
-/// larger (the rule `PacketAxes` applies lane by lane).
+/// larger (the rule `PacketAxes` applies lane by lane). Without branches: incoherent rays
+/// would mispredict them.
 #[inline(always)]
 pub fn dominant_axis(d: Vec3) -> usize {
     let a = d.abs();
-    if a.x > a.y {
-        if a.x > a.z {
-            0
-        } else {
-            2
-        }
-    } else if a.y > a.z {
-        1
-    } else {
-        2
-    }
+    let x_beats_y = a.x > a.y;
+    let is_x = x_beats_y & (a.x > a.z);
+    let is_y = !x_beats_y & (a.y > a.z);
+    2 - 2 * is_x as usize - is_y as usize
 }
 
 /// [kx, ky, kz]: the dominant axis last, the other two after it cyclically.
@@ -95,7 +89,8 @@ pub fn axes(d: Vec3) -> [usize; 3] {
 /// `v` with its components in the order `k` ([kx, ky, kz]).
 #[inline(always)]
 pub fn permute(v: Vec3, k: [usize; 3]) -> V3<f32> {
-    V3 { x: v[k[0]], y: v[k[1]], z: v[k[2]] }
+    let c = v.to_array();
+    V3 { x: c[k[0]], y: c[k[1]], z: c[k[2]] }
 }
 
 /// A ray's shear, from its direction permuted by [`axes`]: x -= sx z and y -= sy z make the
@@ -173,8 +168,9 @@ pub(crate) fn intersect_simd<V: SimdF32>(
     let [a, b, c] = tri.map(|v| v.minus(o));
     let [u, v, w, det, t_det] = core(a, b, c, shear);
     let zero = V::splat(0.0);
-    let inside = (u.simd_ge(zero) & v.simd_ge(zero) & w.simd_ge(zero))
-        | (u.simd_le(zero) & v.simd_le(zero) & w.simd_le(zero));
+    // No edge function negative, or none positive. (A NaN in any of them makes t NaN, which
+    // the interval test rejects, so how min and max treat NaN does not matter.)
+    let inside = u.fast_min(v).fast_min(w).simd_ge(zero) | u.fast_max(v).fast_max(w).simd_le(zero);
     let inv = V::splat(1.0) / det;
     let (t, u, v) = (t_det * inv, v * inv, w * inv);
     let hit = valid & inside & det.simd_ne(zero) & t.simd_ge(t_min) & t.simd_le(t_max);
@@ -182,12 +178,14 @@ pub(crate) fn intersect_simd<V: SimdF32>(
 }
 
 /// Each lane's [`axes`] as masks, to permute lane vectors: `is_x` where kz = x, `is_y` where
-/// kz = y; `uniform` is kz when every lane shares it (then permuting a broadcast is free).
+/// kz = y; `uniform` is the axis order when every lane shares it (then a broadcast point is
+/// permuted by picking its components, for free).
 #[derive(Clone, Copy, Debug)]
 pub struct PacketAxes<V> {
     is_x: V,
     is_y: V,
-    uniform: Option<usize>,
+    /// [kx, ky, kz] shared by every lane, if they share it.
+    pub uniform: Option<[usize; 3]>,
 }
 
 impl<V: SimdF32> PacketAxes<V> {
@@ -201,9 +199,9 @@ impl<V: SimdF32> PacketAxes<V> {
         let is_y = V::select(x_beats_y, V::splat(0.0), az.simd_lt(ay));
         let (bx, by) = (is_x.bitmask() & filled, is_y.bitmask() & filled);
         let uniform = match (bx, by) {
-            (0, 0) => Some(2),
-            (x, 0) if x == filled => Some(0),
-            (0, y) if y == filled => Some(1),
+            (0, 0) => Some([0, 1, 2]),
+            (x, 0) if x == filled => Some([1, 2, 0]),
+            (0, y) if y == filled => Some([2, 0, 1]),
             _ => None,
         };
         PacketAxes { is_x, is_y, uniform }
@@ -219,11 +217,11 @@ impl<V: SimdF32> PacketAxes<V> {
         V3 { x: pick(v.y, v.z, v.x), y: pick(v.z, v.x, v.y), z: pick(v.x, v.y, v.z) }
     }
 
-    /// A point broadcast to every lane, in each lane's order: free when the lanes share kz.
+    /// A point broadcast to every lane, in each lane's order.
     #[inline(always)]
     pub fn permute_splat(&self, p: Vec3) -> V3<V> {
         match self.uniform {
-            Some(kz) => broadcast(permute(p, [(kz + 1) % 3, (kz + 2) % 3, kz])),
+            Some(k) => broadcast(permute(p, k)),
             None => self.permute(splat3(p)),
         }
     }
