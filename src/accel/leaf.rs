@@ -94,6 +94,7 @@ fn leaf_blocks(
 /// smallest prim wins, here and against the best so far, so the result does not depend on
 /// the order in which leaves are visited.
 #[inline]
+#[allow(clippy::too_many_arguments)] // the leaf (range, entry distance), the ray twice (as the test takes it, and its interval), its best hit and the counters
 pub(super) fn intersect_leaf(
     tris: &TriangleSoa,
     first: usize,
