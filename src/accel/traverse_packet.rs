@@ -24,7 +24,7 @@ use super::traverse_single::{self, Entry as SingleEntry};
 use super::wide_node::{leaf_range, WideNode, ARITY, LEAF_BIT};
 use super::TraceStats;
 use crate::geometry::triangles::{TriangleSoa, LANES};
-use crate::geometry::watertight::{broadcast, intersect_simd, splat3, V3};
+use crate::geometry::watertight::{broadcast, edge_test, intersect_simd, splat3, V3};
 use crate::math::{Hit, Ray};
 use crate::simd::SimdF32;
 
@@ -385,10 +385,17 @@ fn intersect_leaf<V: SimdF32>(
     stats.triangle_tests += (count as u64) * lanes.count_ones() as u64;
     let valid = V::from_bitmask(lanes);
     let inflate = V::splat(BOX_INFLATE);
+    let coherent = p.axes.uniform.is_some();
     for i in first..first + count {
         let tri = splat_tri(tris, i, p);
-        let (mask, t, u, v) =
-            intersect_simd(p.origin_in_axes, &p.shear, tri, p.t_min, p.t_max, valid);
+        let edges = edge_test(p.origin_in_axes, &p.shear, tri, valid);
+        // In a coherent packet (its lanes share the dominant axis) most triangles of a leaf
+        // enclose none of the lanes: skip their division. Incoherent packets lose more to the
+        // branch than they save (PERF.md "Watertight triangles").
+        if coherent && edges.candidates.bitmask() == 0 {
+            continue;
+        }
+        let (mask, t, u, v) = edges.hit(p.t_min, p.t_max);
         // Hits in front of the leaf box do not count (`leaf`).
         let mask = mask & (t * inflate).simd_ge(near);
         let take = mask.bitmask();

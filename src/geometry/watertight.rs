@@ -165,16 +165,47 @@ pub(crate) fn intersect_simd<V: SimdF32>(
     t_max: V,
     valid: V,
 ) -> (V, V, V, V) {
+    edge_test(o, shear, tri, valid).hit(t_min, t_max)
+}
+
+/// The first half of [`intersect_simd`]: which lanes the triangle's edges enclose, before the
+/// one division that t, u and v need. A caller that tests many lanes against one triangle
+/// skips that division when no lane is left (`EdgeTest::candidates`).
+#[inline(always)]
+pub(crate) fn edge_test<V: SimdF32>(
+    o: V3<V>,
+    shear: &Shear<V>,
+    tri: [V3<V>; 3],
+    valid: V,
+) -> EdgeTest<V> {
     let [a, b, c] = tri.map(|v| v.minus(o));
     let [u, v, w, det, t_det] = core(a, b, c, shear);
     let zero = V::splat(0.0);
     // No edge function negative, or none positive. (A NaN in any of them makes t NaN, which
     // the interval test rejects, so how min and max treat NaN does not matter.)
     let inside = u.fast_min(v).fast_min(w).simd_ge(zero) | u.fast_max(v).fast_max(w).simd_le(zero);
-    let inv = V::splat(1.0) / det;
-    let (t, u, v) = (t_det * inv, v * inv, w * inv);
-    let hit = valid & inside & det.simd_ne(zero) & t.simd_ge(t_min) & t.simd_le(t_max);
-    (hit, t, u, v)
+    EdgeTest { candidates: valid & inside & det.simd_ne(zero), v, w, det, t_det }
+}
+
+/// What [`edge_test`] found, per lane.
+#[derive(Clone, Copy)]
+pub(crate) struct EdgeTest<V> {
+    /// Lanes inside all three edges, with a nonzero determinant: the only ones that can hit.
+    pub candidates: V,
+    v: V,
+    w: V,
+    det: V,
+    t_det: V,
+}
+
+impl<V: SimdF32> EdgeTest<V> {
+    /// The hit mask (the candidates whose t lies in [t_min, t_max]) and t, u, v per lane.
+    #[inline(always)]
+    pub fn hit(&self, t_min: V, t_max: V) -> (V, V, V, V) {
+        let inv = V::splat(1.0) / self.det;
+        let (t, u, v) = (self.t_det * inv, self.v * inv, self.w * inv);
+        (self.candidates & t.simd_ge(t_min) & t.simd_le(t_max), t, u, v)
+    }
 }
 
 /// Each lane's [`axes`] as masks, to permute lane vectors: `is_x` where kz = x, `is_y` where
