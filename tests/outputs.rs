@@ -158,13 +158,22 @@ fn sigint_during_a_render_exits_130_without_files() {
     let dir = scratch_dir("sigint");
     let image = dir.join("big.png");
     let s = cornell();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_pathtracer"))
+    let mut command = Command::new(env!("CARGO_BIN_EXE_pathtracer"));
+    command
         .args(["-r", "800", "600", "-s", "4096", "-m", "5", "-t", "2", "-f"])
         .args([image.to_str().unwrap(), &s])
         .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
+        .stderr(Stdio::null());
+    // The renderer keeps a SIGINT that its parent ignores (as a shell's background job
+    // inherits it), so the child starts with the default action whatever this test inherited.
+    // SAFETY: only `signal`, which is async-signal-safe, runs between fork and exec.
+    unsafe {
+        std::os::unix::process::CommandExt::pre_exec(&mut command, || {
+            libc::signal(libc::SIGINT, libc::SIG_DFL);
+            Ok(())
+        });
+    }
+    let mut child = command.spawn().unwrap();
     // Rendering has begun once the BVH line is out.
     let mut stdout = child.stdout.take().unwrap();
     let mut seen = String::new();
