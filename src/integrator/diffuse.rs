@@ -11,7 +11,7 @@
 
 use std::f32::consts::FRAC_1_PI;
 
-use super::lights::TriangleEmitter;
+use super::lights::{Rectangle, TriangleEmitter, CORNER_WEIGHT_FLOOR};
 use super::path::{DirectLighting, DrawLayout, RR_START_DEPTH};
 use super::{PathState, RenderContext, ShadeOutputs};
 use crate::geometry::prim;
@@ -367,26 +367,13 @@ fn sample_scene_light(light: &Light, v: &Vertex, u0: V, u1: V) -> LightLanes {
     let (zero, one, inf) = (V::splat(0.0), V::splat(1.0), V::splat(f32::INFINITY));
     let p = v.p;
     match *light {
-        Light::Area { position, direction, dim_x, dim_y, radiance } => {
-            let half = V::splat(0.5);
-            let q = V3::splat(position)
-                .add(V3::splat(dim_x).scale(u0 - half))
-                .add(V3::splat(dim_y).scale(u1 - half));
-            let d = q.sub(p);
-            let dist = d.dot(d).sqrt();
-            let wi = d.div(dist);
-            let cos_l = neg(V3::splat(direction).dot(wi));
-            let area = V::splat(dim_x.cross(dim_y).length());
-            LightLanes {
-                finite: true,
-                wi,
-                dist,
-                li: V3::splat(radiance),
-                pdf: dist * dist / (area * cos_l),
-                cos_light: cos_l,
-                sampled: gt(cos_l, zero) & gt(dist, zero) & gt(area, zero),
-            }
-        }
+        Light::Area { position, direction, dim_x, dim_y, radiance } => sample_rectangle(
+            &Rectangle::new(position, direction, dim_x, dim_y),
+            radiance,
+            v,
+            u0,
+            u1,
+        ),
         Light::Point { position, radiance } => {
             let d = V3::splat(position).sub(p);
             let dist = d.dot(d).sqrt();
@@ -426,6 +413,56 @@ fn sample_scene_light(light: &Light, v: &Vertex, u0: V, u1: V) -> LightLanes {
             }
         }
     }
+}
+
+/// `Rectangle::sample` lane by lane.
+#[inline(always)]
+fn sample_rectangle(r: &Rectangle, radiance: Vec3, v: &Vertex, u0: V, u1: V) -> LightLanes {
+    let (zero, one, half) = (V::splat(0.0), V::splat(1.0), V::splat(0.5));
+    let [w00, w10, w01, w11] = corner_weights(r, v.p, v.frame.n);
+    let (a, b, c, d) = (w00 + w01, w10 + w11, w00 + w10, w01 + w11);
+    let (s, t) = (sample_linear(u0, a, b), sample_linear(u1, c, d));
+    let weight = ((one - s) * a + s * b) * ((one - t) * c + t * d);
+    let norm = (half * (a + b)) * (half * (c + d));
+    let q = V3::splat(r.corner).add(V3::splat(r.dim_x).scale(s)).add(V3::splat(r.dim_y).scale(t));
+    let dv = q.sub(v.p);
+    let dist = dv.dot(dv).sqrt();
+    let wi = dv.div(dist);
+    let cos_l = neg(V3::splat(r.direction).dot(wi));
+    let area = V::splat(r.area);
+    LightLanes {
+        finite: true,
+        wi,
+        dist,
+        li: V3::splat(radiance),
+        pdf: weight * (dist * dist) / (norm * (area * cos_l)),
+        cos_light: cos_l,
+        sampled: gt(cos_l, zero) & gt(dist, zero) & gt(area, zero),
+    }
+}
+
+/// `Rectangle::corner_weights` lane by lane.
+#[inline(always)]
+fn corner_weights(r: &Rectangle, p: V3, n: V3) -> [V; 4] {
+    let zero = V::splat(0.0);
+    let c10 = r.corner + r.dim_x;
+    let v = [r.corner, c10, r.corner + r.dim_y, c10 + r.dim_y].map(|q| V3::splat(q).sub(p));
+    let r2 = v.map(|v| v.dot(v));
+    let one = V::splat(1.0);
+    let (i01, i23) = (one / (r2[0] * r2[1]), one / (r2[2] * r2[3]));
+    let inv = [r2[1] * i01, r2[0] * i01, r2[3] * i23, r2[2] * i23];
+    let w: [V; 4] = std::array::from_fn(|k| max(v[k].dot(n), zero) * inv[k] * inv[k]);
+    let largest = max(max(w[0], w[1]), max(w[2], w[3]));
+    let floor =
+        V::select(gt(largest, zero), largest * V::splat(CORNER_WEIGHT_FLOOR), V::splat(1.0));
+    w.map(|x| max(x, floor))
+}
+
+/// `lights::sample_linear` lane by lane.
+#[inline(always)]
+fn sample_linear(xi: V, a: V, b: V) -> V {
+    let x = xi * (a + b) / (a + ((V::splat(1.0) - xi) * a * a + xi * b * b).sqrt());
+    min(x, V::splat(1.0 - f32::EPSILON / 2.0))
 }
 
 /// `bsdf::cosine_hemisphere`, lane by lane.
