@@ -453,9 +453,10 @@ fn corner_weights(r: &Rectangle, p: V3, n: V3) -> [V; 4] {
     let inv = [r2[1] * i01, r2[0] * i01, r2[3] * i23, r2[2] * i23];
     let w: [V; 4] = std::array::from_fn(|k| max(v[k].dot(n), zero) * inv[k] * inv[k]);
     let largest = max(max(w[0], w[1]), max(w[2], w[3]));
-    let floor =
-        V::select(gt(largest, zero), largest * V::splat(CORNER_WEIGHT_FLOOR), V::splat(1.0));
-    w.map(|x| max(x, floor))
+    let usable = gt(largest, zero) & largest.simd_lt(V::splat(f32::INFINITY));
+    let scale = one / largest;
+    let floor = V::splat(CORNER_WEIGHT_FLOOR);
+    w.map(|x| V::select(usable, max(x * scale, floor), one))
 }
 
 /// `lights::sample_linear` lane by lane.

@@ -337,8 +337,9 @@ impl Rectangle {
     /// The corners' weights (00, 10, 01, 11: steps along `dim_x`, `dim_y`), cos(receiver)+ /
     /// distance^4: the light's cosine at a corner is its distance from `p`'s ... plane over
     /// the corner's distance, and that numerator is the same at all four corners, so it drops
-    /// out. Each is raised to `CORNER_WEIGHT_FLOOR` of the largest; all are 1 when no corner
-    /// is above the receiver's horizon (every sample is then rejected by its cosine).
+    /// out. They are divided by the largest and raised to `CORNER_WEIGHT_FLOOR`; all are 1
+    /// when no corner is above the receiver's horizon (every sample is then rejected by its
+    /// cosine) or the largest is not finite (a receiver within 1e-9 of a corner).
     fn corner_weights(&self, p: Vec3, n: Vec3) -> [f32; 4] {
         let c10 = self.corner + self.dim_x;
         let v = [self.corner, c10, self.corner + self.dim_y, c10 + self.dim_y].map(|q| q - p);
@@ -348,9 +349,15 @@ impl Rectangle {
         let (i01, i23) = (1.0 / (r2[0] * r2[1]), 1.0 / (r2[2] * r2[3]));
         let inv = [r2[1] * i01, r2[0] * i01, r2[3] * i23, r2[2] * i23];
         let w: [f32; 4] = std::array::from_fn(|k| max_of(v[k].dot(n), 0.0) * inv[k] * inv[k]);
+        // Scaled to the largest, so that the draws' squares neither overflow nor underflow
+        // whatever the scene's units.
         let largest = max_of(max_of(w[0], w[1]), max_of(w[2], w[3]));
-        let floor = if largest > 0.0 { largest * CORNER_WEIGHT_FLOOR } else { 1.0 };
-        w.map(|x| max_of(x, floor))
+        if largest > 0.0 && largest < f32::INFINITY {
+            let scale = 1.0 / largest;
+            w.map(|x| max_of(x * scale, CORNER_WEIGHT_FLOOR))
+        } else {
+            [1.0; 4]
+        }
     }
 }
 
@@ -533,6 +540,32 @@ mod tests {
             let sampled = irradiance_by_sampling(&light, p, n);
             let err = (sampled - reference).abs() / reference.max(1e-30);
             assert!(err < 1e-3, "at {p}: sampled {sampled}, quadrature {reference}");
+        }
+    }
+
+    #[test]
+    fn area_light_samples_do_not_depend_on_the_scene_units() {
+        // Irradiance does not change when the light and the receiver are scaled together; at
+        // 1e-8 and 1e8 the corners' weights (1 / distance^3) would overflow and underflow the
+        // draws' squares if they were not normalised (NaN and lost light: checked).
+        let (light, points) = light_and_points();
+        let Light::Area { position, direction, dim_x, dim_y, radiance } = light else {
+            unreachable!()
+        };
+        for scale in [1e-8f32, 1e8] {
+            let scaled = Light::Area {
+                position: position * scale,
+                direction,
+                dim_x: dim_x * scale,
+                dim_y: dim_y * scale,
+                radiance,
+            };
+            for &(p, n) in &points[..5] {
+                let reference = irradiance_by_sampling(&light, p, n);
+                let sampled = irradiance_by_sampling(&scaled, p * scale, n);
+                let err = (sampled - reference).abs() / reference;
+                assert!(err < 1e-3, "scale {scale} at {p}: {sampled} against {reference}");
+            }
         }
     }
 
