@@ -37,17 +37,23 @@ impl PathState {
         self.zero_bounce_weight.clear();
     }
 
-    /// Adds a path for pixel `pixel` with throughput 1, no radiance, a `bsdf_pdf` of 0 and a
-    /// zero-bounce weight of 1; returns its index.
-    pub fn push(&mut self, pixel: u32, sampler: PathSampler) -> u32 {
-        let id = self.pixel.len() as u32;
-        self.pixel.push(pixel);
-        self.throughput.push(Vec3::ONE);
-        self.radiance.push(Vec3::ZERO);
-        self.bsdf_pdf.push(0.0);
-        self.sampler.push(sampler);
-        self.zero_bounce_weight.push(1.0);
-        id
+    /// Adds one path per sampler in `samplers`, all for pixel `pixel`, each with throughput 1,
+    /// no radiance, a `bsdf_pdf` of 0 and a zero-bounce weight of 1. A pixel's samples are
+    /// started together so that each column grows once per pixel, not once per path (pushed
+    /// path by path, the columns' capacity checks were a third of camera-ray generation:
+    /// PERF.md, "Whole renders").
+    pub fn push_pixel_samples(
+        &mut self,
+        pixel: u32,
+        samplers: impl ExactSizeIterator<Item = PathSampler>,
+    ) {
+        let end = self.len() + samplers.len();
+        self.sampler.extend(samplers);
+        self.pixel.resize(end, pixel);
+        self.throughput.resize(end, Vec3::ONE);
+        self.radiance.resize(end, Vec3::ZERO);
+        self.bsdf_pdf.resize(end, 0.0);
+        self.zero_bounce_weight.resize(end, 1.0);
     }
 
     /// The number of paths.
@@ -81,6 +87,14 @@ impl RayQueue {
     pub fn push(&mut self, ray: Ray, path: u32) {
         self.rays.push(ray);
         self.path.push(path);
+    }
+
+    /// Queues `rays` for the consecutive paths `first_path`, `first_path + 1`, ...: each
+    /// column grows once for the run.
+    pub fn push_run(&mut self, rays: impl ExactSizeIterator<Item = Ray>, first_path: u32) {
+        let n = rays.len() as u32;
+        self.rays.extend(rays);
+        self.path.extend(first_path..first_path + n);
     }
 
     /// The number of queued rays.

@@ -76,10 +76,12 @@ pub fn generate_camera_rays(
             let (x, y) = (tile.x0 + local_x, tile.y0 + local_y);
             let pixel = y as u64 * width as u64 + x as u64;
             let key = sampler::pixel_key(ctx.seed, pixel);
-            for s in first_sample..first_sample + batch {
-                let path = PathSampler::for_pixel(ctx.sampler, ctx.seed, pixel, key, s, ctx.spp);
-                paths.push(local, path);
-            }
+            let samples = first_sample..first_sample + batch;
+            paths.push_pixel_samples(
+                local,
+                samples
+                    .map(|s| PathSampler::for_pixel(ctx.sampler, ctx.seed, pixel, key, s, ctx.spp)),
+            );
         }
     }
     for first in (0..paths.len()).step_by(LANES) {
@@ -98,9 +100,9 @@ pub fn generate_camera_rays(
         // Each ray straight from the lane arrays: staging whole `Vec3`s first made every
         // ray's copy wait on a failed store-to-load forward (a sixth of this stage's samples).
         let [x, y, z] = ctx.camera.dirs_through_pixels(px, py);
-        for (l, p) in ids.enumerate() {
-            rays.push(Ray::new(ctx.camera.eye, Vec3::new(x[l], y[l], z[l])), p as u32);
-        }
+        let eye = ctx.camera.eye;
+        let lane_rays = (0..ids.len()).map(|l| Ray::new(eye, Vec3::new(x[l], y[l], z[l])));
+        rays.push_run(lane_rays, first as u32);
     }
     edge_rays.clear();
     if edges.extra > 0 {
