@@ -32,6 +32,10 @@ const _: () = assert!(LANES == DRAW_BLOCK);
 
 /// Up to `LANES` diffuse vertices, loaded lane by lane: each lane's ray and hit, and what
 /// reconstructing its surface reads (`load_surfaces`), so that `Surface::at` runs in lanes.
+/// A lane's ray and its other per-vertex values are pushed as records of 8 floats and turned
+/// into lanes by one 8 x 8 transpose each (`vertex`): a vertex's values stored one float per
+/// lane array cost 27 scalar stores per vertex, and the vector loads after them waited on
+/// failed store-to-load forwards.
 #[derive(Default)]
 pub struct DiffuseLanes {
     /// Lanes in use: vertices pushed so far (at most `LANES`).
@@ -41,19 +45,19 @@ pub struct DiffuseLanes {
     /// Queue index of each vertex's ray (its random numbers in the `DrawBatch`).
     queue: [usize; LANES],
     prim: [u32; LANES],
-    origin: [Lanes; 3],
-    dir: [Lanes; 3],
-    t: Lanes,
-    /// Barycentrics of corners 1 and 2 (triangles); `u` holds the radius for spheres.
-    u: Lanes,
-    v: Lanes,
+    /// Each lane's ray: origin, direction, t_min, t_max.
+    rays: [[f32; 8]; LANES],
+    /// Each lane's hit distance `t`, barycentrics `u`, `v`, path throughput (x, y, z) and the
+    /// x and y of its albedo.
+    values: [[f32; 8]; LANES],
+    albedo_z: Lanes,
+    /// A sphere's radius, lane by lane.
+    radius: Lanes,
     /// Lanes whose hit is a sphere, as a bit mask.
     spheres: u32,
     /// A triangle's corner positions and normals; a sphere's centre is `corners[0]`.
     corners: [[Lanes; 3]; 3],
     normals: [[Lanes; 3]; 3],
-    throughput: [Lanes; 3],
-    albedo: [Lanes; 3],
 }
 
 fn put(a: &mut [Lanes; 3], l: usize, v: Vec3) {
@@ -62,6 +66,15 @@ fn put(a: &mut [Lanes; 3], l: usize, v: Vec3) {
 
 fn get(a: &[Lanes; 3], l: usize) -> Vec3 {
     Vec3::new(a[0][l], a[1][l], a[2][l])
+}
+
+/// A lane's vertex values from `DiffuseLanes::values`, as lanes.
+struct PushedValues {
+    t: V,
+    u: V,
+    v: V,
+    throughput: V3,
+    albedo: V3,
 }
 
 impl DiffuseLanes {
@@ -85,11 +98,11 @@ impl DiffuseLanes {
         self.path[l] = path;
         self.queue[l] = queue;
         self.prim[l] = hit.prim;
-        put(&mut self.origin, l, ray.origin);
-        put(&mut self.dir, l, ray.dir);
-        (self.t[l], self.u[l], self.v[l]) = (hit.t, hit.u, hit.v);
-        put(&mut self.throughput, l, throughput);
-        put(&mut self.albedo, l, albedo);
+        let (o, d) = (ray.origin, ray.dir);
+        self.rays[l] = [o.x, o.y, o.z, d.x, d.y, d.z, ray.t_min, ray.t_max];
+        let (t, a) = (throughput, albedo);
+        self.values[l] = [hit.t, hit.u, hit.v, t.x, t.y, t.z, a.x, a.y];
+        self.albedo_z[l] = a.z;
         self.len += 1;
     }
 
@@ -99,14 +112,29 @@ impl DiffuseLanes {
             self.path[l] = self.path[0];
             self.queue[l] = self.queue[0];
             self.prim[l] = self.prim[0];
-            for a in [&mut self.t, &mut self.u, &mut self.v] {
-                a[l] = a[0];
-            }
-            for a in [&mut self.origin, &mut self.dir, &mut self.throughput, &mut self.albedo] {
-                for c in a.iter_mut() {
-                    c[l] = c[0];
-                }
-            }
+            self.rays[l] = self.rays[0];
+            self.values[l] = self.values[0];
+            self.albedo_z[l] = self.albedo_z[0];
+        }
+    }
+
+    /// The pushed rays' origins and directions, as lanes.
+    #[inline(always)]
+    fn ray_lanes(&self) -> (V3, V3) {
+        let [ox, oy, oz, dx, dy, dz, _, _] = V::columns8(LANES, |l| self.rays[l]);
+        (V3 { x: ox, y: oy, z: oz }, V3 { x: dx, y: dy, z: dz })
+    }
+
+    /// The pushed hits, throughputs and albedos, as lanes.
+    #[inline(always)]
+    fn value_lanes(&self) -> PushedValues {
+        let [t, u, v, tx, ty, tz, ax, ay] = V::columns8(LANES, |l| self.values[l]);
+        PushedValues {
+            t,
+            u,
+            v,
+            throughput: V3 { x: tx, y: ty, z: tz },
+            albedo: V3 { x: ax, y: ay, z: V::load(&self.albedo_z) },
         }
     }
 
@@ -127,7 +155,7 @@ impl DiffuseLanes {
             if self.spheres & (1 << l) != 0 {
                 let s = &scene.spheres[prim::sphere_index(self.prim[l]) as usize];
                 put(&mut self.corners[0], l, s.center);
-                self.u[l] = s.radius;
+                self.radius[l] = s.radius;
                 continue;
             }
             for (k, &vertex) in v.iter().enumerate() {
@@ -231,6 +259,7 @@ struct Vertex {
     frame: Frame,
     wo: V3,
     throughput: V3,
+    albedo: V3,
     /// The diffuse BSDF value, albedo / pi.
     f: V3,
     /// The lanes that hold vertices.
@@ -313,25 +342,25 @@ pub fn shade_diffuse(
     out.bounce.valid = 0;
     // As in `path::shade_hit`, MIS continues from the last vertex too (the BSDF half).
     if depth + 1 < ctx.max_depth || direct == DirectLighting::Mis {
-        continue_diffuse(ctx, depth, layout, &v, &number, &mut out.bounce, lanes);
+        continue_diffuse(ctx, depth, layout, &v, &number, &mut out.bounce);
     }
 }
 
 /// `Surface::at` in lanes: the hit point, the geometric normal and the shading normal.
 #[inline(always)]
-fn surface(lanes: &DiffuseLanes, origin: V3, dir: V3) -> (V3, V3, V3) {
-    let p = origin.add(dir.scale(V::load(&lanes.t)));
+fn surface(lanes: &DiffuseLanes, origin: V3, dir: V3, hit: &PushedValues) -> (V3, V3, V3) {
+    let p = origin.add(dir.scale(hit.t));
     let [a, b, c] = lanes.corners.each_ref().map(V3::load);
     let [na, nb, nc] = lanes.normals.each_ref().map(V3::load);
-    let (u, v) = (V::load(&lanes.u), V::load(&lanes.v));
+    let (u, v) = (hit.u, hit.v);
     let ng = normalize_or(b.sub(a).cross(c.sub(a)), V3::splat(Vec3::Y));
     let w = V::splat(1.0) - u - v;
     let ns = normalize_or(na.scale(w).add(nb.scale(u)).add(nc.scale(v)), ng);
     if lanes.spheres == 0 {
         return (p, ng, ns);
     }
-    // A sphere's normal, with the radius in `u`.
-    let n = normalize_or(p.sub(a).div(u), V3::splat(Vec3::Y));
+    // A sphere's normal.
+    let n = normalize_or(p.sub(a).div(V::load(&lanes.radius)), V3::splat(Vec3::Y));
     let sphere = V::from_bitmask(lanes.spheres);
     (p, V3::select(sphere, n, ng), V3::select(sphere, n, ns))
 }
@@ -340,9 +369,10 @@ fn surface(lanes: &DiffuseLanes, origin: V3, dir: V3) -> (V3, V3, V3) {
 #[inline(always)]
 fn vertex(lanes: &DiffuseLanes) -> Vertex {
     let zero = V::splat(0.0);
-    let dir = V3::load(&lanes.dir);
+    let (origin, dir) = lanes.ray_lanes();
+    let pushed = lanes.value_lanes();
     let neg_dir = V3 { x: neg(dir.x), y: neg(dir.y), z: neg(dir.z) };
-    let (p, ng_s, ns_s) = surface(lanes, V3::load(&lanes.origin), dir);
+    let (p, ng_s, ns_s) = surface(lanes, origin, dir, &pushed);
     let cos_out = neg(ng_s.dot(dir));
     let sign = V::select(cos_out.simd_lt(zero), V::splat(-1.0), V::splat(1.0));
     let ng = ng_s.scale(sign);
@@ -355,8 +385,9 @@ fn vertex(lanes: &DiffuseLanes) -> Vertex {
         ng,
         frame,
         wo,
-        throughput: V3::load(&lanes.throughput),
-        f: V3::load(&lanes.albedo).scale(V::splat(FRAC_1_PI)),
+        throughput: pushed.throughput,
+        albedo: pushed.albedo,
+        f: pushed.albedo.scale(V::splat(FRAC_1_PI)),
         used: V::from_bitmask(lanes.used()),
     }
 }
@@ -557,14 +588,13 @@ fn continue_diffuse(
     v: &Vertex,
     number: &impl Fn(usize, usize) -> V,
     out: &mut BounceLanes,
-    lanes: &DiffuseLanes,
 ) {
     let (p, ng, frame, wo, throughput, used) = (v.p, v.ng, &v.frame, v.wo, v.throughput, v.used);
     let zero = V::splat(0.0);
     let (u1, u2) = (number(layout.bsdf, 0), number(layout.bsdf, 1));
     let wi = cosine_hemisphere(u1, u2);
     let mut valid = used & gt(wo.z, zero) & gt(wi.z, zero);
-    let mut t = throughput.mul(V3::load(&lanes.albedo));
+    let mut t = throughput.mul(v.albedo);
     if depth + 1 >= RR_START_DEPTH {
         let roulette = match layout.lobe {
             Some(k) => number(k, 1),
