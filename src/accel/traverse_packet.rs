@@ -258,17 +258,22 @@ pub fn intersect<V: SimdF32>(
     let mut e = Entered::new();
     let stack = &mut stack.closest;
     stack.clear();
-    let mut cur = Entry { child: 0, lanes: active, near: p.t_min };
+    // The current subtree's fields as locals, and the single-ray hand-over given a copy of
+    // the entry distances: with `&cur` passed to it, `cur` lived in memory, every new subtree
+    // was copied into it as two 256-bit halves (LLVM's 256-bit preference on x86-64-v4), and
+    // the 512-bit load at the top of the loop waited on both stores. 16-ray packets: primary
+    // rays 1.02-1.05x (PERF.md, "16-ray packets and the interval pre-test").
+    let (mut child, mut entered, mut near) = (0u32, active, p.t_min);
     loop {
         // Lanes whose best hit is already nearer than the subtree drop out of it.
-        let lanes = cur.lanes & cur.near.simd_le(p.t_max * V::splat(BOX_INFLATE)).bitmask();
+        let lanes = entered & near.simd_le(p.t_max * V::splat(BOX_INFLATE)).bitmask();
         if lanes != 0 {
             if lanes.count_ones() <= fallback {
-                finish_single(nodes, tris, &cur, lanes, p, &mut hits, stats);
-            } else if cur.child & LEAF_BIT != 0 {
-                let (first, count) = leaf_range(cur.child);
+                finish_single(nodes, tris, child, &{ near }, lanes, p, &mut hits, stats);
+            } else if child & LEAF_BIT != 0 {
+                let (first, count) = leaf_range(child);
                 if leaf_by_lane(lanes, count) {
-                    lane_by_lane(lanes, cur.near, p, &mut hits, |ray, best, near| {
+                    lane_by_lane(lanes, near, p, &mut hits, |ray, best, near| {
                         leaf::intersect_leaf(
                             tris,
                             first,
@@ -281,10 +286,10 @@ pub fn intersect<V: SimdF32>(
                         )
                     });
                 } else {
-                    intersect_leaf(tris, first, count, cur.near, lanes, p, &mut hits, stats);
+                    intersect_leaf(tris, first, count, near, lanes, p, &mut hits, stats);
                 }
             } else {
-                let n = &nodes[cur.child as usize];
+                let n = &nodes[child as usize];
                 entered_children(p, n, lanes, interval.as_ref(), &mut e, stats);
                 if e.k > 0 {
                     // Pushed subtrees start loading now, as in single-ray traversal.
@@ -293,13 +298,14 @@ pub fn intersect<V: SimdF32>(
                         prefetch(nodes, tris, entry.child, prefetch_leaves);
                         entry
                     }));
-                    cur = e.entry(n, e.k - 1);
+                    let next = e.order[e.k - 1] as usize;
+                    (child, entered, near) = (n.child[next], e.lanes[next], e.near[next]);
                     continue;
                 }
             }
         }
         match stack.pop() {
-            Some(e) => cur = e,
+            Some(top) => (child, entered, near) = (top.child, top.lanes, top.near),
             None => return hits,
         }
     }
@@ -342,19 +348,21 @@ fn lane_by_lane<V: SimdF32>(
     hits.v = V::load(&v);
 }
 
-/// Lanes `lanes` finish the subtree `e` one ray at a time.
+/// Lanes `lanes` finish the subtree `child`, entered at `near`, one ray at a time.
 #[inline(never)]
+#[allow(clippy::too_many_arguments)] // the subtree (child, entry distances), the lanes, the packet's state
 fn finish_single<V: SimdF32>(
     nodes: &[WideNode],
     tris: &TriangleSoa,
-    e: &Entry<V>,
+    child: u32,
+    near: &V,
     lanes: u32,
     p: &mut RayPacket<V>,
     hits: &mut PacketHits<V>,
     stats: &mut TraceStats,
 ) {
-    lane_by_lane(lanes, e.near, p, hits, |ray, best, t| {
-        let start = SingleEntry { child: e.child, t };
+    lane_by_lane(lanes, *near, p, hits, |ray, best, t| {
+        let start = SingleEntry { child, t };
         traverse_single::intersect_subtree(nodes, tris, start, ray, best, stats);
     });
 }
