@@ -130,8 +130,7 @@ macro_rules! impl_simd_f32 {
             }
             #[inline(always)]
             fn load(s: &[f32]) -> Self {
-                let a: [f32; $w] = s[..$w].try_into().expect("slice holds W lanes");
-                $t::new(a)
+                <$t as LaneMemory>::load_lanes(s)
             }
             #[inline(always)]
             fn lane(self, i: usize) -> f32 {
@@ -139,7 +138,7 @@ macro_rules! impl_simd_f32 {
             }
             #[inline(always)]
             fn store(self, out: &mut [f32]) {
-                out[..$w].copy_from_slice(self.as_array());
+                <$t as LaneMemory>::store_lanes(self, out)
             }
             #[inline(always)]
             fn simd_eq(self, b: Self) -> Self {
@@ -209,6 +208,33 @@ macro_rules! impl_simd_f32 {
     };
 }
 
+/// Moving lanes between a vector and memory. Through arrays (`wide`'s `new`, `as_array`) the
+/// compiler copies a 512-bit vector as two 256-bit halves (LLVM's 256-bit preference on
+/// x86-64-v4), and a 512-bit load right after such a copy waits for both stores. So the
+/// 512-bit vector moves whole; the narrower ones keep the arrays.
+trait LaneMemory: Sized {
+    fn load_lanes(s: &[f32]) -> Self;
+    fn store_lanes(self, out: &mut [f32]);
+}
+
+macro_rules! impl_lane_memory_by_arrays {
+    ($t:ident, $w:literal) => {
+        impl LaneMemory for $t {
+            #[inline(always)]
+            fn load_lanes(s: &[f32]) -> Self {
+                let a: [f32; $w] = s[..$w].try_into().expect("slice holds W lanes");
+                $t::new(a)
+            }
+            #[inline(always)]
+            fn store_lanes(self, out: &mut [f32]) {
+                out[..$w].copy_from_slice(self.as_array());
+            }
+        }
+    };
+}
+
+impl_lane_memory_by_arrays!(f32x4, 4);
+impl_lane_memory_by_arrays!(f32x8, 8);
 impl_simd_f32!(f32x4, u32x4, 4);
 impl_simd_f32!(f32x8, u32x8, 8);
 
@@ -223,6 +249,73 @@ pub use wide::f32x16 as F32x16;
 
 #[cfg(target_feature = "avx512f")]
 impl_simd_f32!(F32x16, u32x16, 16);
+
+#[cfg(target_feature = "avx512f")]
+impl LaneMemory for F32x16 {
+    #[inline(always)]
+    fn load_lanes(s: &[f32]) -> Self {
+        zmm::load(s)
+    }
+    #[inline(always)]
+    fn store_lanes(self, out: &mut [f32]) {
+        zmm::store(self, out)
+    }
+}
+
+/// Whole-register moves of 512-bit vectors (see `LaneMemory`).
+#[cfg(target_feature = "avx512f")]
+mod zmm {
+    use std::arch::x86_64::{
+        __m256d, __m512, __m512d, _mm512_castpd256_pd512, _mm512_castpd512_pd256,
+        _mm512_extractf64x4_pd, _mm512_insertf64x4, _mm512_loadu_ps, _mm512_storeu_ps,
+    };
+    use std::mem::transmute;
+
+    use wide::f32x8;
+
+    use super::F32x16;
+
+    // SAFETY (every block below): `F32x16` (`wide::f32x16` in this build) and `f32x8` are
+    // `wide`'s plain-data wrappers of one `__m512` and one `__m256` (repr(C), no padding, every
+    // bit pattern valid), so transmutes between them and same-sized intrinsic types are bit
+    // copies; the intrinsics' instruction sets (avx512f, and avx below it) are enabled at
+    // compile time (`cfg(target_feature = "avx512f")`); and the loads and stores touch the 16
+    // floats of a slice whose length the slicing has checked.
+
+    /// The first 16 values of `s`.
+    #[inline(always)]
+    pub fn load(s: &[f32]) -> F32x16 {
+        let s = &s[..16];
+        unsafe { transmute::<__m512, F32x16>(_mm512_loadu_ps(s.as_ptr())) }
+    }
+
+    /// Writes the 16 lanes to the first 16 values of `out`.
+    #[inline(always)]
+    pub fn store(v: F32x16, out: &mut [f32]) {
+        let out = &mut out[..16];
+        unsafe { _mm512_storeu_ps(out.as_mut_ptr(), transmute::<F32x16, __m512>(v)) }
+    }
+
+    /// One vector from two 8-lane halves (lanes 0-7, then 8-15).
+    #[inline(always)]
+    pub fn join(lo: f32x8, hi: f32x8) -> F32x16 {
+        unsafe {
+            let lo = _mm512_castpd256_pd512(transmute::<f32x8, __m256d>(lo));
+            let v = _mm512_insertf64x4::<1>(lo, transmute::<f32x8, __m256d>(hi));
+            transmute::<__m512d, F32x16>(v)
+        }
+    }
+
+    /// The two 8-lane halves of a vector.
+    #[inline(always)]
+    pub fn split(v: F32x16) -> (f32x8, f32x8) {
+        unsafe {
+            let v = transmute::<F32x16, __m512d>(v);
+            let lo = transmute::<__m256d, f32x8>(_mm512_castpd512_pd256(v));
+            (lo, transmute::<__m256d, f32x8>(_mm512_extractf64x4_pd::<1>(v)))
+        }
+    }
+}
 
 #[cfg(target_feature = "avx512f")]
 impl Columns8 for F32x16 {
@@ -251,16 +344,14 @@ impl Columns8 for F32x16 {
 #[cfg(target_feature = "avx512f")]
 #[inline(always)]
 fn join16(lo: f32x8, hi: f32x8) -> F32x16 {
-    let (lo, hi) = (lo.to_array(), hi.to_array());
-    F32x16::new(std::array::from_fn(|i| if i < 8 { lo[i] } else { hi[i - 8] }))
+    zmm::join(lo, hi)
 }
 
 /// The two 8-lane halves of a 16-lane vector.
 #[cfg(target_feature = "avx512f")]
 #[inline(always)]
 fn split16(v: F32x16) -> (f32x8, f32x8) {
-    let a = v.to_array();
-    (f32x8::new(std::array::from_fn(|i| a[i])), f32x8::new(std::array::from_fn(|i| a[i + 8])))
+    zmm::split(v)
 }
 
 /// Sixteen lanes as two `f32x8` halves, for builds without AVX-512.
