@@ -80,7 +80,9 @@ pub enum Choice {
 
 /// The build to run for `wanted`: the highest level at or below it whose build exists
 /// (`exists`), this build (`compiled`) when that comes first. An error when every candidate is
-/// missing and this build is above `wanted`.
+/// missing and this build is above `wanted`. A candidate at this binary's own path is this
+/// build, whatever its name says (an avx512 build copied to `pathtracer`): starting it would
+/// start the same choice again, for ever.
 pub fn choose(
     exe: &Path,
     compiled: Isa,
@@ -91,7 +93,7 @@ pub fn choose(
         if level == compiled {
             return Ok(Choice::Here);
         }
-        if let Some(path) = sibling(exe, level).filter(|p| exists(p)) {
+        if let Some(path) = sibling(exe, level).filter(|p| p != exe && exists(p)) {
             return Ok(Choice::Exec(path, level));
         }
     }
@@ -243,5 +245,10 @@ mod tests {
         assert_eq!(choose(exe, Isa::Avx512, Isa::Baseline, all).unwrap(), exec("pathtracer"));
         let e = choose(exe, Isa::Avx512, Isa::Avx2, only(&[])).unwrap_err().to_string();
         assert!(e.contains("no build for avx2 or below"), "{e}");
+        // An avx512 build under the baseline's name is not started again as the baseline.
+        let exe = Path::new("/x/pathtracer");
+        let e = choose(exe, Isa::Avx512, Isa::Baseline, all).unwrap_err().to_string();
+        assert!(e.contains("asks for sse2, but this is the avx512 build"), "{e}");
+        assert_eq!(choose(exe, Isa::Avx512, Isa::Avx2, all).unwrap(), exec("pathtracer-avx2"));
     }
 }
