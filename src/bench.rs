@@ -163,9 +163,7 @@ pub fn stage_rays(
 ) -> crate::Result<()> {
     outputs.stage(path, |w| {
         for r in rays {
-            for f in
-                [r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z, r.t_min, r.t_max]
-            {
+            for f in r.record() {
                 w.write_all(&f.to_le_bytes())?;
             }
         }

@@ -107,10 +107,7 @@ impl<V: SimdF32> RayPacket<V> {
     pub fn from_rays_masked(rays: &[Ray], active_bits: u32) -> RayPacket<V> {
         let n = rays.len().min(V::W);
         // Inactive lanes keep zeros.
-        let [ox, oy, oz, dx, dy, dz, t_min, t_max] = V::columns8(n, |i| {
-            let r = &rays[i];
-            [r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z, r.t_min, r.t_max]
-        });
+        let [ox, oy, oz, dx, dy, dz, t_min, t_max] = V::columns8(n, |i| rays[i].record());
         let dir = V3 { x: dx, y: dy, z: dz };
         let filled = if n >= 32 { !0 } else { (1u32 << n) - 1 };
         let origin = V3 { x: ox, y: oy, z: oz };

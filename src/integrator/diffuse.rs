@@ -98,8 +98,7 @@ impl DiffuseLanes {
         self.path[l] = path;
         self.queue[l] = queue;
         self.prim[l] = hit.prim;
-        let (o, d) = (ray.origin, ray.dir);
-        self.rays[l] = [o.x, o.y, o.z, d.x, d.y, d.z, ray.t_min, ray.t_max];
+        self.rays[l] = ray.record();
         let (t, a) = (throughput, albedo);
         self.values[l] = [hit.t, hit.u, hit.v, t.x, t.y, t.z, a.x, a.y];
         self.albedo_z[l] = a.z;
@@ -171,18 +170,12 @@ impl DiffuseLanes {
     }
 }
 
-/// The rays of `LANES` lanes as records of 8 floats (origin, direction, t_min, t_max), by one
+/// The rays of `LANES` lanes as records of 8 floats (`Ray::record`), by one
 /// 8 x 8 transpose: queueing a lane's ray is then one copy, not eight lane extractions.
 #[inline(always)]
 fn ray_records(origin: V3, dir: V3, t_min: V, t_max: V) -> [[f32; 8]; LANES] {
     let cols = [origin.x, origin.y, origin.z, dir.x, dir.y, dir.z, t_min, t_max];
     V::columns8(LANES, |i| cols[i].to_array()).map(|row| row.to_array())
-}
-
-/// A ray from its record (`ray_records`).
-#[inline(always)]
-fn ray_of(r: &[f32; 8]) -> Ray {
-    Ray::segment(Vec3::new(r[0], r[1], r[2]), Vec3::new(r[3], r[4], r[5]), r[6], r[7])
 }
 
 /// Shadow rays of one light draw, lane by lane; lane `l` is queued iff bit `l` of `valid`.
@@ -197,7 +190,7 @@ pub struct ShadowLanes {
 impl ShadowLanes {
     /// The shadow ray of lane `l`.
     pub fn ray(&self, l: usize) -> Ray {
-        ray_of(&self.rays[l])
+        Ray::from_record(&self.rays[l])
     }
     /// What lane `l`'s shadow ray adds to its path's radiance if unblocked.
     pub fn contribution(&self, l: usize) -> Vec3 {
@@ -218,7 +211,7 @@ pub struct BounceLanes {
 impl BounceLanes {
     /// The continuation ray of lane `l`.
     pub fn ray(&self, l: usize) -> Ray {
-        ray_of(&self.rays[l])
+        Ray::from_record(&self.rays[l])
     }
     /// The path throughput of lane `l` after the bounce: times the albedo, divided by the
     /// Russian-roulette survival probability where roulette applies.

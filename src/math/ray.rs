@@ -27,6 +27,20 @@ impl Ray {
         Ray { origin, dir, t_min, t_max }
     }
 
+    /// The ray as a record of 8 floats: origin, direction, t_min, t_max (the layout of ray
+    /// files and of the transposes that turn records into SIMD lanes).
+    #[inline(always)]
+    pub fn record(&self) -> [f32; 8] {
+        let (o, d) = (self.origin, self.dir);
+        [o.x, o.y, o.z, d.x, d.y, d.z, self.t_min, self.t_max]
+    }
+
+    /// The ray of a `record`.
+    #[inline(always)]
+    pub fn from_record(r: &[f32; 8]) -> Ray {
+        Ray::segment(Vec3::new(r[0], r[1], r[2]), Vec3::new(r[3], r[4], r[5]), r[6], r[7])
+    }
+
     /// The point `origin + t * dir`.
     #[inline]
     pub fn at(&self, t: f32) -> Vec3 {
