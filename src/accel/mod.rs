@@ -33,6 +33,7 @@ pub use binary_node::{binary_node, BinaryNode};
 pub use build::BuildParams;
 pub use node::BvhNode;
 pub use packet::RayPacket;
+use packet::{CullBox, RayLanes};
 pub use traverse_packet::PacketStack;
 pub use wide_node::{WideNode, MAX_LEAF, MAX_TRIANGLES};
 
@@ -107,6 +108,8 @@ pub struct Accel {
     tris: TriangleSoa,
     spheres: Spheres,
     bounds: Aabb,
+    /// `bounds` prepared for rejecting closest-hit packets that miss the scene (`CullBox`).
+    cull: Option<CullBox>,
     build_time: Duration,
     /// Whether the structure outgrows the caches (`traverse_single::STREAM_LARGE_BYTES`):
     /// then traversal keeps more rays in flight and prefetches leaves too.
@@ -205,6 +208,7 @@ impl Accel {
             tris,
             spheres: Spheres::new(&scene.spheres, bounds.diagonal()),
             bounds,
+            cull: CullBox::new(&bounds),
             build_time: Duration::ZERO,
             large: false,
         };
@@ -355,9 +359,37 @@ impl Accel {
     ) where
         Lanes<W>: LaneWidth,
     {
-        let packet = RayPacket::<VFloat<W>>::from_rays(rays);
+        let lanes = RayLanes::<VFloat<W>>::gather(rays, !0);
         let fallback = traverse_packet::default_fallback(W);
-        self.intersect_ray_packet::<W>(packet, fallback, &mut PacketStack::new(), hits, stats);
+        self.intersect_lanes::<W>(lanes, fallback, &mut PacketStack::new(), hits, stats);
+    }
+
+    /// Closest hits of the gathered rays `lanes`, as `intersect_ray_packet`; a packet whose
+    /// every active lane misses the scene box (`CullBox`) is answered by that one test, before
+    /// the packet's per-ray terms are computed.
+    #[inline(always)]
+    fn intersect_lanes<const W: usize>(
+        &self,
+        lanes: RayLanes<VFloat<W>>,
+        fallback: u32,
+        stack: &mut PacketStack<VFloat<W>>,
+        hits: &mut [Option<Hit>],
+        stats: &mut TraceStats,
+    ) where
+        Lanes<W>: LaneWidth,
+    {
+        if let Some(b) = &self.cull {
+            stats.node_tests += 1;
+            let active = lanes.active_bits();
+            if b.missed_by(&lanes) == active {
+                stats.rays += active.count_ones() as u64;
+                let n = hits.len().min(W);
+                hits[..n].fill(None);
+                return;
+            }
+        }
+        let packet = RayPacket::from_lanes(lanes);
+        self.intersect_ray_packet::<W>(packet, fallback, stack, hits, stats);
     }
 
     /// Closest hits of a prepared packet; `hits[i]` answers lane `i` (`None` for inactive
@@ -472,8 +504,8 @@ impl Accel {
             // The packet after next starts loading while this one is traced (measured:
             // PERF.md, "Measurements moved from doc comments").
             traverse_single::prefetch_slice(rays.get((k + 2) * W..(k + 3) * W).unwrap_or(&[]));
-            let packet = RayPacket::<VFloat<W>>::from_rays(r);
-            self.intersect_ray_packet::<W>(packet, fallback, &mut stack, h, stats);
+            let lanes = RayLanes::<VFloat<W>>::gather(r, !0);
+            self.intersect_lanes::<W>(lanes, fallback, &mut stack, h, stats);
         }
     }
 

@@ -7,7 +7,7 @@
 //! in `TraceStats`.
 
 use crate::geometry::watertight::{PacketAxes, Shear, V3};
-use crate::math::{Hit, Ray, Vec3};
+use crate::math::{Aabb, Hit, Ray, Vec3};
 use crate::simd::SimdF32;
 
 /// Widest packet: bounds the per-lane scratch arrays.
@@ -88,12 +88,136 @@ pub struct RayPacket<V: SimdF32> {
     pub t_max: V,
     /// Lane mask: all-ones for rays to trace.
     pub active: V,
-    /// Each lane's axis order for the triangle test (`watertight`).
-    pub(crate) axes: PacketAxes<V>,
+}
+
+/// The per-lane terms of the watertight triangle test (`watertight`): each lane's axis order,
+/// its origin in that order and its shear. Kept out of `RayPacket` and made only when a packet
+/// first reaches a leaf: most coherent packets never do (on the standard primary rays most
+/// packets leave at the root), and these terms cost a division and a dozen selects per packet.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct TriangleFrame<V: SimdF32> {
+    /// Each lane's axis order.
+    pub axes: PacketAxes<V>,
     /// The origins in each lane's axis order.
-    pub(crate) origin_in_axes: V3<V>,
-    /// Each lane's shear for the triangle test.
-    pub(crate) shear: Shear<V>,
+    pub origin_in_axes: V3<V>,
+    /// Each lane's shear.
+    pub shear: Shear<V>,
+}
+
+impl<V: SimdF32> TriangleFrame<V> {
+    /// The terms for the active lanes of `p`.
+    #[inline(never)]
+    pub fn of(p: &RayPacket<V>) -> TriangleFrame<V> {
+        let axes = PacketAxes::of(&p.dir, p.active_bits());
+        TriangleFrame {
+            origin_in_axes: axes.permute(p.origin),
+            shear: Shear::of(axes.permute(p.dir), V::splat(1.0)),
+            axes,
+        }
+    }
+}
+
+/// A packet's rays as gathered, before anything is derived from them: what `RayPacket`
+/// computes its terms from, and what `CullBox` reads first.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct RayLanes<V: SimdF32> {
+    origin: V3<V>,
+    dir: V3<V>,
+    t_min: V,
+    t_max: V,
+    /// Bit `i` set iff lane `i` holds a ray to trace.
+    active: u32,
+}
+
+impl<V: SimdF32> RayLanes<V> {
+    /// The first `V::W` rays of `rays` (fewer fill the first lanes; the rest are inactive,
+    /// with zeros), with only the lanes whose bit is set in `active_bits` active.
+    #[inline(always)]
+    pub fn gather(rays: &[Ray], active_bits: u32) -> RayLanes<V> {
+        let n = rays.len().min(V::W);
+        let [ox, oy, oz, dx, dy, dz, t_min, t_max] = V::columns8(n, |i| rays[i].record());
+        let filled = if n >= 32 { !0 } else { (1u32 << n) - 1 };
+        RayLanes {
+            origin: V3 { x: ox, y: oy, z: oz },
+            dir: V3 { x: dx, y: dy, z: dz },
+            t_min,
+            t_max,
+            active: filled & active_bits,
+        }
+    }
+
+    /// Bit `i` set iff lane `i` is active.
+    #[inline(always)]
+    pub fn active_bits(&self) -> u32 {
+        self.active
+    }
+}
+
+/// Relative tolerance of `CullBox::missed_by`: 64 ulps of the terms of each comparison, where
+/// their rounding is a few ulps.
+const CULL_TOL: f32 = 64.0 * f32::EPSILON;
+
+/// Margin by which `CullBox` grows the scene box, relative to the scene's scale (the largest
+/// centre coordinate plus the largest half-extent): it covers the rounding of the box's own
+/// centre and half-extents, and hits that the triangle test reports a rounding error outside
+/// a triangle.
+const CULL_MARGIN: f32 = 1.0 / 4096.0;
+
+/// The scene's box, grown by `CULL_MARGIN`, for a test that rejects a whole packet whose
+/// rays all miss the scene before any of its per-ray terms are computed: on the standard
+/// primary rays most packets of 16 miss the scene (CBbunny two thirds, maxplanck half), and
+/// for them the reciprocals, slab terms and interval bounds were most of their cost.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct CullBox {
+    center: [f32; 3],
+    half: [f32; 3],
+}
+
+impl CullBox {
+    /// `None` for an empty or non-finite box (nothing to cull against).
+    pub fn new(b: &Aabb) -> Option<CullBox> {
+        let (lo, hi): ([f32; 3], [f32; 3]) = (b.min.into(), b.max.into());
+        let finite = lo.iter().chain(&hi).all(|v| v.is_finite());
+        if b.is_empty() || !finite {
+            return None;
+        }
+        let center: [f32; 3] = std::array::from_fn(|k| 0.5 * lo[k] + 0.5 * hi[k]);
+        let half: [f32; 3] = std::array::from_fn(|k| 0.5 * hi[k] - 0.5 * lo[k]);
+        let scale = center.iter().fold(0.0f32, |m, c| m.max(c.abs()))
+            + half.iter().fold(0.0f32, |m, e| m.max(*e));
+        let margin = scale * CULL_MARGIN;
+        Some(CullBox { center, half: half.map(|e| e + margin) })
+    }
+
+    /// The active lanes of `r` whose line (the ray extended both ways) surely misses the box:
+    /// for an axis k, the box's projection onto k x d, `e_i |d_j| + e_j |d_i|`, is smaller
+    /// than the projection of the line, `|((o - c) x d)_k|` (the separating axes of a line and
+    /// a box), by more than `CULL_TOL` of the terms. Lanes with a NaN or infinite origin or
+    /// direction are never missed: their traversal decides.
+    #[inline(always)]
+    pub fn missed_by<V: SimdF32>(&self, r: &RayLanes<V>) -> u32 {
+        let (c, e, d) = (self.center, self.half, &r.dir);
+        let w = V3 {
+            x: r.origin.x - V::splat(c[0]),
+            y: r.origin.y - V::splat(c[1]),
+            z: r.origin.z - V::splat(c[2]),
+        };
+        let a = V3 { x: d.x.abs(), y: d.y.abs(), z: d.z.abs() };
+        // Axis k with the other two axes i, j: (w x d)_k = w_i d_j - w_j d_i.
+        let separated = |wi: V, dj: V, wj: V, di: V, ei: f32, adj: V, ej: f32, adi: V| {
+            let (p, q) = (wi * dj, wj * di);
+            let reach = V::splat(ei) * adj + V::splat(ej) * adi;
+            let tol = (p.abs() + q.abs() + reach) * V::splat(CULL_TOL);
+            (reach + tol).simd_lt((p - q).abs())
+        };
+        let x = separated(w.y, d.z, w.z, d.y, e[1], a.z, e[2], a.y);
+        let y = separated(w.z, d.x, w.x, d.z, e[2], a.x, e[0], a.z);
+        let z = separated(w.x, d.y, w.y, d.x, e[0], a.y, e[1], a.x);
+        // NaN compares false, and any infinity makes the sum infinite or NaN.
+        let sum = w.x.abs() + w.y.abs() + w.z.abs() + a.x + a.y + a.z;
+        let finite = sum.simd_lt(V::splat(f32::INFINITY));
+        ((x | y | z) & finite).bitmask() & r.active
+    }
 }
 
 impl<V: SimdF32> RayPacket<V> {
@@ -105,27 +229,24 @@ impl<V: SimdF32> RayPacket<V> {
     /// As `from_rays`, with only the lanes whose bit is set in `active_bits` active.
     #[inline]
     pub fn from_rays_masked(rays: &[Ray], active_bits: u32) -> RayPacket<V> {
-        let n = rays.len().min(V::W);
-        // Inactive lanes keep zeros.
-        let [ox, oy, oz, dx, dy, dz, t_min, t_max] = V::columns8(n, |i| rays[i].record());
-        let dir = V3 { x: dx, y: dy, z: dz };
-        let filled = if n >= 32 { !0 } else { (1u32 << n) - 1 };
-        let origin = V3 { x: ox, y: oy, z: oz };
+        RayPacket::from_lanes(RayLanes::gather(rays, active_bits))
+    }
+
+    /// The packet of the gathered rays `r`, its per-ray terms computed.
+    #[inline]
+    pub(crate) fn from_lanes(r: RayLanes<V>) -> RayPacket<V> {
+        let (origin, dir) = (r.origin, r.dir);
         let inv_dir = V3 { x: safe_recip_v(dir.x), y: safe_recip_v(dir.y), z: safe_recip_v(dir.z) };
         let (neg_o_inv, slack) = slab_terms(&origin, &inv_dir);
-        let axes = PacketAxes::of(&dir, filled & active_bits);
         RayPacket {
             origin,
             dir,
             inv_dir,
             neg_o_inv,
             slack,
-            t_min,
-            t_max,
-            active: V::from_bitmask(filled & active_bits),
-            origin_in_axes: axes.permute(origin),
-            shear: Shear::of(axes.permute(dir), V::splat(1.0)),
-            axes,
+            t_min: r.t_min,
+            t_max: r.t_max,
+            active: V::from_bitmask(r.active),
         }
     }
 
@@ -231,5 +352,114 @@ mod tests {
     fn packets_gather_lanes_and_mask_the_tail() {
         gathers::<f32x4>();
         gathers::<f32x8>();
+    }
+}
+
+#[cfg(test)]
+mod cull_tests {
+    use super::*;
+    use crate::sampler::Pcg32;
+    use wide::f32x8;
+
+    /// Whether the line o + t d (any t) meets the closed box [lo, hi], in f64.
+    fn line_meets_box(o: Vec3, d: Vec3, lo: Vec3, hi: Vec3) -> bool {
+        let (mut t0, mut t1) = (f64::NEG_INFINITY, f64::INFINITY);
+        for k in 0..3 {
+            let (o, d, lo, hi) = (o[k] as f64, d[k] as f64, lo[k] as f64, hi[k] as f64);
+            if d == 0.0 {
+                if o < lo || o > hi {
+                    return false;
+                }
+                continue;
+            }
+            let (a, b) = ((lo - o) / d, (hi - o) / d);
+            (t0, t1) = (t0.max(a.min(b)), t1.min(a.max(b)));
+        }
+        t0 <= t1
+    }
+
+    /// The line's distance from the box, in f64, relative to the box's diagonal: how far
+    /// the box would have to grow for the line to meet it (0 if it meets), by bisection.
+    fn growth_to_meet(o: Vec3, d: Vec3, lo: Vec3, hi: Vec3) -> f64 {
+        let diag = (hi - lo).length() as f64;
+        let (mut a, mut b) = (0.0f64, 1e3);
+        for _ in 0..60 {
+            let m = 0.5 * (a + b);
+            let g = Vec3::splat((m * diag) as f32);
+            if line_meets_box(o, d, lo - g, hi + g) {
+                b = m;
+            } else {
+                a = m;
+            }
+        }
+        b
+    }
+
+    /// The cull never rejects a line that meets the box, including lines through its
+    /// corners and edges, from near and far, axis-parallel ones, and lines in its face planes;
+    /// and it rejects nearly every line that passes clearly beside it.
+    #[test]
+    fn the_scene_box_cull_never_rejects_a_line_that_meets_the_box() {
+        let mut rng = Pcg32::new(11, 5);
+        let mut r = move || rng.next_f32();
+        let (mut clear_misses, mut culled_clear_misses, mut meets) = (0, 0, 0);
+        for case in 0..3000 {
+            let scale = [1e-3f32, 1.0, 1e3][case % 3];
+            let offset = Vec3::new(r() - 0.5, r() - 0.5, r() - 0.5) * scale * 10.0;
+            let a = Vec3::new(r(), r(), r()) * scale + offset;
+            let b = Vec3::new(r(), r(), r()) * scale + offset;
+            let (lo, hi) = (a.min(b), a.max(b));
+            let bx = CullBox::new(&Aabb { min: lo, max: hi }).unwrap();
+            let rays: Vec<Ray> = (0..8)
+                .map(|k| {
+                    let far = [1.0, 30.0, 1e4][(case + k) % 3];
+                    let o = offset + Vec3::new(r() - 0.5, r() - 0.5, r() - 0.5) * scale * far;
+                    // Aim at a corner, an edge point, a face point or anywhere near the box.
+                    let f = Vec3::new(r(), r(), r());
+                    let f = match (case + k) % 5 {
+                        0 => f.round(),
+                        1 => Vec3::new(f.x.round(), f.y.round(), f.z),
+                        2 => Vec3::new(f.x.round(), f.y, f.z),
+                        3 => f * 3.0 - Vec3::splat(1.0),
+                        _ => f,
+                    };
+                    let target = lo + f * (hi - lo);
+                    let mut d = target - o;
+                    if (case + k) % 7 == 0 {
+                        d = Vec3::new(0.0, 0.0, d.z);
+                    }
+                    Ray::new(o, d)
+                })
+                .collect();
+            let missed = bx.missed_by(&RayLanes::<f32x8>::gather(&rays, !0));
+            for (k, ray) in rays.iter().enumerate() {
+                let culled = missed & (1 << k) != 0;
+                if line_meets_box(ray.origin, ray.dir, lo, hi) {
+                    meets += 1;
+                    assert!(!culled, "case {case} lane {k}: culled a line that meets the box");
+                } else if growth_to_meet(ray.origin, ray.dir, lo, hi) > 0.01 {
+                    clear_misses += 1;
+                    culled_clear_misses += culled as u32;
+                }
+            }
+        }
+        assert!(meets > 5000 && clear_misses > 3000, "{meets} {clear_misses}");
+        // Lines from 1e4 box sizes away get a tolerance of about a tenth of the box.
+        let culled = culled_clear_misses as f64 / clear_misses as f64;
+        assert!(culled > 0.95, "{culled_clear_misses} of {clear_misses}");
+    }
+
+    /// Empty and non-finite boxes give no cull, and NaN or infinite lanes are never rejected.
+    #[test]
+    fn the_scene_box_cull_skips_empty_boxes_and_nan_lanes() {
+        assert!(CullBox::new(&Aabb::EMPTY).is_none());
+        let inf = Aabb { min: Vec3::splat(0.0), max: Vec3::new(1.0, f32::INFINITY, 1.0) };
+        assert!(CullBox::new(&inf).is_none());
+        let bx = CullBox::new(&Aabb { min: Vec3::splat(0.0), max: Vec3::splat(1.0) }).unwrap();
+        let away = Ray::new(Vec3::new(5.0, 5.0, 5.0), Vec3::new(1.0, 0.0, 0.0));
+        let nan = Ray::new(Vec3::new(5.0, f32::NAN, 5.0), Vec3::new(1.0, 0.0, 0.0));
+        let inf = Ray::new(Vec3::new(5.0, 5.0, 5.0), Vec3::new(f32::INFINITY, 0.0, 0.0));
+        let lanes = RayLanes::<f32x8>::gather(&[away, nan, inf, away], 0b0111);
+        assert_eq!(bx.missed_by(&lanes), 0b0001);
     }
 }

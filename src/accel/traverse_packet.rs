@@ -18,7 +18,7 @@
 
 use super::build::MAX_DEPTH;
 use super::leaf::{self, LeafRay};
-use super::packet::{PacketHits, RayPacket, BOX_INFLATE, MAX_W};
+use super::packet::{PacketHits, RayPacket, TriangleFrame, BOX_INFLATE, MAX_W};
 use super::packet_interval::PacketInterval;
 use super::traverse_single::{self, Entry as SingleEntry};
 use super::wide_node::{leaf_range, WideNode, ARITY, LEAF_BIT};
@@ -81,10 +81,10 @@ fn slab<V: SimdF32>(p: &RayPacket<V>, min: [f32; 3], max: [f32; 3], t_max: V) ->
 /// The vertices of slot `i`, broadcast to every lane in each lane's axis order: read in that
 /// order when the lanes share it, else permuted lane by lane.
 #[inline(always)]
-fn splat_tri<V: SimdF32>(tris: &TriangleSoa, i: usize, p: &RayPacket<V>) -> [V3<V>; 3] {
-    match p.axes.uniform {
+fn splat_tri<V: SimdF32>(tris: &TriangleSoa, i: usize, f: &TriangleFrame<V>) -> [V3<V>; 3] {
+    match f.axes.uniform {
         Some(k) => tris.vertices_in(i, k).map(|[x, y, z]| broadcast(V3 { x, y, z })),
-        None => tris.vertices(i).map(|v| p.axes.permute(splat3(v))),
+        None => tris.vertices(i).map(|v| f.axes.permute(splat3(v))),
     }
 }
 
@@ -256,6 +256,7 @@ pub fn intersect<V: SimdF32>(
     }
     let interval = if V::W >= INTERVAL_MIN_W { PacketInterval::new(p, active) } else { None };
     let mut e = Entered::new();
+    let mut frame = None;
     let stack = &mut stack.closest;
     stack.clear();
     // The current subtree's fields as locals, and the single-ray hand-over given a copy of
@@ -286,7 +287,8 @@ pub fn intersect<V: SimdF32>(
                         )
                     });
                 } else {
-                    intersect_leaf(tris, first, count, near, lanes, p, &mut hits, stats);
+                    let f = frame.get_or_insert_with(|| TriangleFrame::of(p));
+                    intersect_leaf(tris, first, count, near, lanes, f, p, &mut hits, stats);
                 }
             } else {
                 let n = &nodes[child as usize];
@@ -386,6 +388,7 @@ fn intersect_leaf<V: SimdF32>(
     count: usize,
     near: V,
     lanes: u32,
+    f: &TriangleFrame<V>,
     p: &mut RayPacket<V>,
     hits: &mut PacketHits<V>,
     stats: &mut TraceStats,
@@ -393,10 +396,10 @@ fn intersect_leaf<V: SimdF32>(
     stats.triangle_tests += (count as u64) * lanes.count_ones() as u64;
     let valid = V::from_bitmask(lanes);
     let inflate = V::splat(BOX_INFLATE);
-    let coherent = p.axes.uniform.is_some();
+    let coherent = f.axes.uniform.is_some();
     for i in first..first + count {
-        let tri = splat_tri(tris, i, p);
-        let edges = edge_test(p.origin_in_axes, &p.shear, tri, valid);
+        let tri = splat_tri(tris, i, f);
+        let edges = edge_test(f.origin_in_axes, &f.shear, tri, valid);
         // In a coherent packet (its lanes share the dominant axis) most triangles of a leaf
         // enclose none of the lanes: skip their division. Incoherent packets lose more to the
         // branch than they save (PERF.md "Watertight triangles").
@@ -462,6 +465,7 @@ pub fn occluded<V: SimdF32>(
     // No interval pre-test for occlusion: 0.91x on shadow packets (`INTERVAL_MIN_W`).
     let interval = None;
     let mut e = Entered::new();
+    let mut frame = None;
     let mut blocked = 0u32;
     let stack = &mut stack.any;
     stack.clear();
@@ -483,7 +487,8 @@ pub fn occluded<V: SimdF32>(
                         leaf::occluded_leaf(tris, first, count, &LeafRay::new(ray), ray, stats)
                     });
                 } else {
-                    blocked |= occluded_leaf(tris, first, count, lanes, p, stats);
+                    let f = frame.get_or_insert_with(|| TriangleFrame::of(p));
+                    blocked |= occluded_leaf(tris, first, count, lanes, f, p, stats);
                 }
             } else {
                 let n = &nodes[child as usize];
@@ -536,16 +541,17 @@ fn occluded_leaf<V: SimdF32>(
     first: usize,
     count: usize,
     lanes: u32,
+    f: &TriangleFrame<V>,
     p: &RayPacket<V>,
     stats: &mut TraceStats,
 ) -> u32 {
     let mut open = lanes;
     for i in first..first + count {
         stats.triangle_tests += open.count_ones() as u64;
-        let tri = splat_tri(tris, i, p);
+        let tri = splat_tri(tris, i, f);
         let (mask, ..) = intersect_simd(
-            p.origin_in_axes,
-            &p.shear,
+            f.origin_in_axes,
+            &f.shear,
             tri,
             p.t_min,
             p.t_max,
