@@ -114,6 +114,48 @@ pub struct Accel {
     /// Whether the structure outgrows the caches (`traverse_single::STREAM_LARGE_BYTES`):
     /// then traversal keeps more rays in flight and prefetches leaves too.
     large: bool,
+    /// Whether the structure fits one core's L2 cache (`l2_cache_bytes`): then single rays
+    /// are traced one at a time, with no other ray in flight to hide node loads behind.
+    in_l2: bool,
+}
+
+/// One core's L2 cache in bytes, as Linux reports it for CPU 0
+/// (`/sys/devices/system/cpu/cpu0/cache/index*/`, the level-2 data or unified cache), or 1 MiB
+/// where it reports none (a common size, and the smaller one keeps rays in flight).
+fn l2_cache_bytes() -> usize {
+    static L2: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+    *L2.get_or_init(|| l2_from_sysfs().unwrap_or(1 << 20))
+}
+
+/// The level-2 data or unified cache of CPU 0 from sysfs, if Linux lists one.
+fn l2_from_sysfs() -> Option<usize> {
+    let dir = std::path::Path::new("/sys/devices/system/cpu/cpu0/cache");
+    (0..8).find_map(|i| {
+        let index = dir.join(format!("index{i}"));
+        let read = |name: &str| std::fs::read_to_string(index.join(name)).ok();
+        let level = read("level")?;
+        let kind = read("type")?;
+        if level.trim() != "2" || kind.trim() == "Instruction" {
+            return None;
+        }
+        parse_cache_size(read("size")?.trim())
+    })
+}
+
+/// A sysfs cache size ("2048K", "1M", "512") in bytes; `None` if it does not parse or is 0.
+fn parse_cache_size(s: &str) -> Option<usize> {
+    let (digits, unit) = match s.char_indices().find(|(_, c)| !c.is_ascii_digit()) {
+        Some((i, _)) => s.split_at(i),
+        None => (s, ""),
+    };
+    let n: usize = digits.parse().ok()?;
+    let scale = match unit {
+        "" => 1,
+        "K" => 1 << 10,
+        "M" => 1 << 20,
+        _ => return None,
+    };
+    n.checked_mul(scale).filter(|&b| b > 0)
 }
 
 impl Accel {
@@ -211,8 +253,10 @@ impl Accel {
             cull: CullBox::new(&bounds),
             build_time: Duration::ZERO,
             large: false,
+            in_l2: false,
         };
         accel.large = accel.memory_bytes() > traverse_single::STREAM_LARGE_BYTES;
+        accel.in_l2 = accel.memory_bytes() <= l2_cache_bytes();
         // Huge pages only for a structure that outgrows the caches, where the TLB misses
         // they save were measured (PERF.md, "Large scenes"). Collapsing the pages of a few
         // megabytes copies them and took 1 to 14 ms per build on maxplanck (3.2 MB), more
@@ -302,12 +346,15 @@ impl Accel {
 
     /// Closest hits of any number of rays (`hits[i]` answers `rays[i]`), the same as
     /// `intersect` ray by ray, with a few rays interleaved on the thread
-    /// (`traverse_single::intersect_stream`).
+    /// (`traverse_single::intersect_stream`) unless the structure fits the L2 cache, where
+    /// interleaving cost more than the node loads it hides (PERF.md, "Single rays in L2").
     pub fn intersect_stream(&self, rays: &[Ray], hits: &mut [Option<Hit>], stats: &mut TraceStats) {
         use traverse_single::{intersect_stream, STREAM_LARGE, STREAM_SMALL};
         stats.rays += rays.len() as u64;
         let (nodes, tris) = (&self.wide_nodes, &self.tris);
-        if !self.large {
+        if self.in_l2 {
+            intersect_stream::<1, false>(nodes, tris, rays, hits, stats);
+        } else if !self.large {
             intersect_stream::<STREAM_SMALL, false>(nodes, tris, rays, hits, stats);
         } else {
             intersect_stream::<STREAM_LARGE, true>(nodes, tris, rays, hits, stats);
@@ -537,5 +584,21 @@ impl Accel {
             let packet = RayPacket::<VFloat<W>>::from_rays(r);
             self.occluded_ray_packet::<W>(&packet, fallback, &mut stack, b, stats);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parse_cache_size;
+
+    #[test]
+    fn sysfs_cache_sizes_parse() {
+        assert_eq!(parse_cache_size("2048K"), Some(2 << 20));
+        assert_eq!(parse_cache_size("1M"), Some(1 << 20));
+        assert_eq!(parse_cache_size("512"), Some(512));
+        assert_eq!(parse_cache_size("0K"), None);
+        assert_eq!(parse_cache_size("12G"), None);
+        assert_eq!(parse_cache_size(""), None);
+        assert_eq!(parse_cache_size("K"), None);
     }
 }
