@@ -355,9 +355,9 @@ pub(crate) fn occluded_subtree(
     }
 }
 
-/// How many rays `Accel::intersect_stream` keeps in flight on one thread: `STREAM_SMALL`
-/// for a structure of at most `STREAM_LARGE_BYTES` (cache-resident on this machine kind),
-/// else `STREAM_LARGE`, each ray's next node or leaf prefetched as soon as it is known. Each
+/// How many rays `Accel::intersect_stream` keeps in flight on one thread: one for a
+/// structure that fits the core's L2 cache, `STREAM_SMALL` for one of at most
+/// `STREAM_LARGE_BYTES` (L3-resident on this machine kind), else `STREAM_LARGE`, each ray's next node or leaf prefetched as soon as it is known. Each
 /// ray in flight adds a stack and a prepared ray to the working set and mixes the branch
 /// history of the traversal loop, and each prefetch costs instructions; on a cache-resident
 /// scene that costs more than the overlapped latency gives back.
