@@ -2,9 +2,11 @@
 //! generic over the lane type `V` (`wide::f32x4`, `wide::f32x8` or `simd::F32x16`, see
 //! `crate::simd`).
 //!
-//! A packet is gathered from a slice of `Ray` records (the queues' layout); lanes past the end
-//! of the slice, or switched off by the caller, are inactive and never produce a hit or count
-//! in `TraceStats`.
+//! A packet is gathered from a slice of `Ray` records (the queues' layout) into `RayLanes`;
+//! lanes past the end of the slice, or switched off by the caller, are inactive and never
+//! produce a hit or count in `TraceStats`. Closest-hit traversal first asks `CullBox` whether
+//! every lane's line misses the scene box, and only otherwise derives the packet's slab terms
+//! (`RayPacket`) and, at its first leaf, its triangle-test terms (`TriangleFrame`).
 
 use crate::geometry::watertight::{PacketAxes, Shear, V3};
 use crate::math::{Aabb, Hit, Ray, Vec3};
