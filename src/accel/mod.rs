@@ -70,7 +70,9 @@ pub enum AccelKind {
 ///   box and whose best hit is not yet nearer), not W: inactive and finished lanes cost nothing in
 ///   the count. A closest-hit packet of 16 rays whose lanes share direction signs first tests the
 ///   node's boxes against the whole packet at once (`packet_interval`): that counts one test per
-///   child box, and then only the boxes it passes count per lane. A lane handed to single-ray
+///   child box, and then only the boxes it passes count per lane. A closest-hit packet whose
+///   first ray starts outside the scene box first tests all its lanes against that box at once
+///   (`packet::CullBox`): one test per packet. A lane handed to single-ray
 ///   fallback counts as single-ray traversal from then on.
 /// - `triangle_tests`: ray-triangle tests. One ray against a leaf of k triangles counts k (the
 ///   8-wide SIMD test of k < 8 triangles still counts k; an any-hit ray that stops at a
@@ -406,18 +408,19 @@ impl Accel {
     ) where
         Lanes<W>: LaneWidth,
     {
-        let lanes = RayLanes::<VFloat<W>>::gather(rays, !0);
         let fallback = traverse_packet::default_fallback(W);
-        self.intersect_lanes::<W>(lanes, fallback, &mut PacketStack::new(), hits, stats);
+        self.intersect_rays::<W>(rays, fallback, &mut PacketStack::new(), hits, stats);
     }
 
-    /// Closest hits of the gathered rays `lanes`, as `intersect_ray_packet`; a packet whose
-    /// every active lane misses the scene box (`CullBox`) is answered by that one test, before
-    /// the packet's per-ray terms are computed.
+    /// Closest hits of up to `W` rays traced as one packet, as `intersect_ray_packet`; a packet
+    /// whose every lane's line misses the scene box (`CullBox`) is answered by that one test,
+    /// before the packet's per-ray terms are computed. The test runs only when the first ray
+    /// starts outside the box: a line through a point inside meets it, so bounce rays, and
+    /// camera rays from inside the scene, skip it (it cost closed scenes' renders 1-1.5%).
     #[inline(always)]
-    fn intersect_lanes<const W: usize>(
+    fn intersect_rays<const W: usize>(
         &self,
-        lanes: RayLanes<VFloat<W>>,
+        rays: &[Ray],
         fallback: u32,
         stack: &mut PacketStack<VFloat<W>>,
         hits: &mut [Option<Hit>],
@@ -425,7 +428,9 @@ impl Accel {
     ) where
         Lanes<W>: LaneWidth,
     {
-        if let Some(b) = &self.cull {
+        let lanes = RayLanes::<VFloat<W>>::gather(rays, !0);
+        let outside = |b: &&CullBox| rays.first().is_some_and(|r| !b.holds(r.origin));
+        if let Some(b) = self.cull.as_ref().filter(outside) {
             stats.node_tests += 1;
             let active = lanes.active_bits();
             if b.missed_by(&lanes) == active {
@@ -551,8 +556,7 @@ impl Accel {
             // The packet after next starts loading while this one is traced (measured:
             // PERF.md, "Measurements moved from doc comments").
             traverse_single::prefetch_slice(rays.get((k + 2) * W..(k + 3) * W).unwrap_or(&[]));
-            let lanes = RayLanes::<VFloat<W>>::gather(r, !0);
-            self.intersect_lanes::<W>(lanes, fallback, &mut stack, h, stats);
+            self.intersect_rays::<W>(r, fallback, &mut stack, h, stats);
         }
     }
 

@@ -191,6 +191,13 @@ impl CullBox {
         Some(CullBox { center, half: half.map(|e| e + margin) })
     }
 
+    /// Whether the point lies in the grown box (then every line through it meets the box).
+    #[inline(always)]
+    pub fn holds(&self, p: Vec3) -> bool {
+        let p: [f32; 3] = p.into();
+        (0..3).all(|k| (p[k] - self.center[k]).abs() <= self.half[k])
+    }
+
     /// The active lanes of `r` whose line (the ray extended both ways) surely misses the box:
     /// for an axis k, the box's projection onto k x d, `e_i |d_j| + e_j |d_i|`, is smaller
     /// than the projection of the line, `|((o - c) x d)_k|` (the separating axes of a line and
@@ -449,6 +456,32 @@ mod cull_tests {
         // Lines from 1e4 box sizes away get a tolerance of about a tenth of the box.
         let culled = culled_clear_misses as f64 / clear_misses as f64;
         assert!(culled > 0.95, "{culled_clear_misses} of {clear_misses}");
+    }
+
+    /// A line through a point the grown box holds is never rejected (so skipping the test for
+    /// such a packet changes nothing), and points clearly outside are not held.
+    #[test]
+    fn lines_through_held_points_are_never_culled() {
+        let mut rng = Pcg32::new(2, 9);
+        let mut r = move || rng.next_f32();
+        let (lo, hi) = (Vec3::new(-1.0, 2.0, -3.0), Vec3::new(4.0, 2.5, 1.0));
+        let bx = CullBox::new(&Aabb { min: lo, max: hi }).unwrap();
+        for _ in 0..2000 {
+            // Points over a box 1.2 times as large: most held, some not.
+            let f = Vec3::new(r(), r(), r()) * 1.2 - Vec3::splat(0.1);
+            let o = lo + f * (hi - lo);
+            let rays: Vec<Ray> =
+                (0..8).map(|_| Ray::new(o, Vec3::new(r() - 0.5, r() - 0.5, r() - 0.5))).collect();
+            let inside = f.cmpge(Vec3::ZERO).all() && f.cmple(Vec3::ONE).all();
+            if inside {
+                assert!(bx.holds(o));
+            }
+            if bx.holds(o) {
+                assert_eq!(bx.missed_by(&RayLanes::<f32x8>::gather(&rays, !0)), 0);
+            }
+            let far = f.cmplt(Vec3::splat(-0.01)).any() || f.cmpgt(Vec3::splat(1.01)).any();
+            assert!(!(far && bx.holds(o)));
+        }
     }
 
     /// Empty and non-finite boxes give no cull, and NaN or infinite lanes are never rejected.
