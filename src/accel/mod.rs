@@ -433,7 +433,7 @@ impl Accel {
         if let Some(b) = self.cull.as_ref().filter(outside) {
             stats.node_tests += 1;
             let active = lanes.active_bits();
-            if b.missed_by(&lanes) == active {
+            if b.missed_by(lanes) == active {
                 stats.rays += active.count_ones() as u64;
                 let n = hits.len().min(W);
                 hits[..n].fill(None);

@@ -204,7 +204,7 @@ impl CullBox {
     /// a box), by more than `CULL_TOL` of the terms. Lanes with a NaN or infinite origin or
     /// direction are never missed: their traversal decides.
     #[inline(always)]
-    pub fn missed_by<V: SimdF32>(&self, r: &RayLanes<V>) -> u32 {
+    pub fn missed_by<V: SimdF32>(&self, r: RayLanes<V>) -> u32 {
         let (c, e, d) = (self.center, self.half, &r.dir);
         let w = V3 {
             x: r.origin.x - V::splat(c[0]),
@@ -440,7 +440,7 @@ mod cull_tests {
                     Ray::new(o, d)
                 })
                 .collect();
-            let missed = bx.missed_by(&RayLanes::<f32x8>::gather(&rays, !0));
+            let missed = bx.missed_by(RayLanes::<f32x8>::gather(&rays, !0));
             for (k, ray) in rays.iter().enumerate() {
                 let culled = missed & (1 << k) != 0;
                 if line_meets_box(ray.origin, ray.dir, lo, hi) {
@@ -477,7 +477,7 @@ mod cull_tests {
                 assert!(bx.holds(o));
             }
             if bx.holds(o) {
-                assert_eq!(bx.missed_by(&RayLanes::<f32x8>::gather(&rays, !0)), 0);
+                assert_eq!(bx.missed_by(RayLanes::<f32x8>::gather(&rays, !0)), 0);
             }
             let far = f.cmplt(Vec3::splat(-0.01)).any() || f.cmpgt(Vec3::splat(1.01)).any();
             assert!(!(far && bx.holds(o)));
@@ -495,6 +495,6 @@ mod cull_tests {
         let nan = Ray::new(Vec3::new(5.0, f32::NAN, 5.0), Vec3::new(1.0, 0.0, 0.0));
         let inf = Ray::new(Vec3::new(5.0, 5.0, 5.0), Vec3::new(f32::INFINITY, 0.0, 0.0));
         let lanes = RayLanes::<f32x8>::gather(&[away, nan, inf, away], 0b0111);
-        assert_eq!(bx.missed_by(&lanes), 0b0001);
+        assert_eq!(bx.missed_by(lanes), 0b0001);
     }
 }
