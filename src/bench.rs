@@ -387,11 +387,13 @@ pub(crate) fn trace_once(
         if set.is_occlusion() {
             rays.par_chunks(CHUNK)
                 .zip(out.blocked.par_chunks_mut(CHUNK))
+                .with_max_len(1)
                 .map(|(r, b)| occluded_chunk(accel, r, traversal, fallback, b))
                 .collect()
         } else {
             rays.par_chunks(CHUNK)
                 .zip(out.hits.par_chunks_mut(CHUNK))
+                .with_max_len(1)
                 .map(|(r, h)| intersect_chunk(accel, r, traversal, fallback, h))
                 .collect()
         }

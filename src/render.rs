@@ -222,9 +222,19 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         if config.progress && std::io::IsTerminal::is_terminal(&std::io::stderr()) {
             s.spawn(|| report_progress(&done, tiles.len(), start));
         }
+        // One rayon job per tile, so that a thread that runs out of tiles takes the next one
+        // from another's share: with rayon's default splitting, a thread left holding a run of
+        // expensive tiles kept them while the other idled. Each pool thread keeps its own
+        // workspace (its queues keep their capacity from tile to tile); the lock is never
+        // contended.
+        let workspaces: Vec<Mutex<Workspace>> =
+            (0..pool.current_num_threads()).map(|_| Mutex::default()).collect();
         pool.install(|| {
-            tiles.par_iter().for_each_init(Workspace::default, |ws, &tile| {
-                let r = render_one_tile(&ctx, tile, ws);
+            tiles.par_iter().with_max_len(1).for_each(|&tile| {
+                let slot = rayon::current_thread_index().unwrap_or(0) % workspaces.len();
+                let mut ws = workspaces[slot].lock().unwrap_or_else(|e| e.into_inner());
+                let r = render_one_tile(&ctx, tile, &mut ws);
+                drop(ws);
                 image.lock().unwrap_or_else(|e| e.into_inner()).add_tile(config.width, &tile, &r);
                 done.fetch_add(1, Ordering::Relaxed);
             })
