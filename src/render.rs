@@ -225,16 +225,23 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         // One rayon job per tile, so that a thread that runs out of tiles takes the next one
         // from another's share: with rayon's default splitting, a thread left holding a run of
         // expensive tiles kept them while the other idled. Each pool thread keeps its own
-        // workspace (its queues keep their capacity from tile to tile); the lock is never
-        // contended.
+        // workspace (its queues keep their capacity from tile to tile), behind a lock that no
+        // other thread takes.
         let workspaces: Vec<Mutex<Workspace>> =
             (0..pool.current_num_threads()).map(|_| Mutex::default()).collect();
         pool.install(|| {
             tiles.par_iter().with_max_len(1).for_each(|&tile| {
                 let slot = rayon::current_thread_index().unwrap_or(0) % workspaces.len();
-                let mut ws = workspaces[slot].lock().unwrap_or_else(|e| e.into_inner());
-                let r = render_one_tile(&ctx, tile, &mut ws);
-                drop(ws);
+                // A busy slot (a tile job nested in another on this thread) gets a fresh one.
+                let r = match workspaces[slot].try_lock() {
+                    Ok(mut ws) => render_one_tile(&ctx, tile, &mut ws),
+                    Err(std::sync::TryLockError::Poisoned(e)) => {
+                        render_one_tile(&ctx, tile, &mut e.into_inner())
+                    }
+                    Err(std::sync::TryLockError::WouldBlock) => {
+                        render_one_tile(&ctx, tile, &mut Workspace::default())
+                    }
+                };
                 image.lock().unwrap_or_else(|e| e.into_inner()).add_tile(config.width, &tile, &r);
                 done.fetch_add(1, Ordering::Relaxed);
             })
