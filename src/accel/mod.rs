@@ -258,7 +258,6 @@ impl Accel {
             in_l2: false,
         };
         accel.large = accel.memory_bytes() > traverse_single::STREAM_LARGE_BYTES;
-        accel.in_l2 = accel.memory_bytes() <= l2_cache_bytes();
         // Huge pages only for a structure that outgrows the caches, where the TLB misses
         // they save were measured (PERF.md, "Large scenes"). Collapsing the pages of a few
         // megabytes copies them and took 1 to 14 ms per build on maxplanck (3.2 MB), more
@@ -269,6 +268,8 @@ impl Accel {
             hugepage::advise(accel.tris.blocks());
         }
         accel.build_time = t0.elapsed();
+        // After the clock: the first build of a process reads the cache size from the OS.
+        accel.in_l2 = accel.memory_bytes() <= l2_cache_bytes();
         accel
     }
 
