@@ -232,15 +232,11 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         pool.install(|| {
             tiles.par_iter().with_max_len(1).for_each(|&tile| {
                 let slot = rayon::current_thread_index().unwrap_or(0) % workspaces.len();
-                // A busy slot (a tile job nested in another on this thread) gets a fresh one.
+                // A busy slot (a tile job nested in another on this thread) or a poisoned one
+                // gets a fresh workspace: it is scratch space, so the tile is the same.
                 let r = match workspaces[slot].try_lock() {
                     Ok(mut ws) => render_one_tile(&ctx, tile, &mut ws),
-                    Err(std::sync::TryLockError::Poisoned(e)) => {
-                        render_one_tile(&ctx, tile, &mut e.into_inner())
-                    }
-                    Err(std::sync::TryLockError::WouldBlock) => {
-                        render_one_tile(&ctx, tile, &mut Workspace::default())
-                    }
+                    Err(_) => render_one_tile(&ctx, tile, &mut Workspace::default()),
                 };
                 image.lock().unwrap_or_else(|e| e.into_inner()).add_tile(config.width, &tile, &r);
                 done.fetch_add(1, Ordering::Relaxed);

@@ -205,27 +205,23 @@ impl CullBox {
     /// direction are never missed: their traversal decides.
     #[inline(always)]
     pub fn missed_by<V: SimdF32>(&self, r: RayLanes<V>) -> u32 {
-        let (c, e, d) = (self.center, self.half, &r.dir);
-        let w = V3 {
-            x: r.origin.x - V::splat(c[0]),
-            y: r.origin.y - V::splat(c[1]),
-            z: r.origin.z - V::splat(c[2]),
-        };
-        let a = V3 { x: d.x.abs(), y: d.y.abs(), z: d.z.abs() };
+        let (c, e) = (self.center, self.half);
+        let o = [r.origin.x, r.origin.y, r.origin.z];
+        let w = [0, 1, 2].map(|k| o[k] - V::splat(c[k]));
+        let d = [r.dir.x, r.dir.y, r.dir.z];
+        let a = d.map(V::abs);
         // Axis k with the other two axes i, j: (w x d)_k = w_i d_j - w_j d_i.
-        let separated = |wi: V, dj: V, wj: V, di: V, ei: f32, adj: V, ej: f32, adi: V| {
-            let (p, q) = (wi * dj, wj * di);
-            let reach = V::splat(ei) * adj + V::splat(ej) * adi;
+        let separated = |k: usize| {
+            let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+            let (p, q) = (w[i] * d[j], w[j] * d[i]);
+            let reach = V::splat(e[i]) * a[j] + V::splat(e[j]) * a[i];
             let tol = (p.abs() + q.abs() + reach) * V::splat(CULL_TOL);
             (reach + tol).simd_lt((p - q).abs())
         };
-        let x = separated(w.y, d.z, w.z, d.y, e[1], a.z, e[2], a.y);
-        let y = separated(w.z, d.x, w.x, d.z, e[2], a.x, e[0], a.z);
-        let z = separated(w.x, d.y, w.y, d.x, e[0], a.y, e[1], a.x);
         // NaN compares false, and any infinity makes the sum infinite or NaN.
-        let sum = w.x.abs() + w.y.abs() + w.z.abs() + a.x + a.y + a.z;
+        let sum = w[0].abs() + w[1].abs() + w[2].abs() + a[0] + a[1] + a[2];
         let finite = sum.simd_lt(V::splat(f32::INFINITY));
-        ((x | y | z) & finite).bitmask() & r.active
+        ((separated(0) | separated(1) | separated(2)) & finite).bitmask() & r.active
     }
 }
 
