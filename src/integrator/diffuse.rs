@@ -24,8 +24,11 @@ use super::lane_math::{
     gt, max, min, neg, normalize_or, offset_origin, ray_epsilon, sincos_turns, Frame, Lanes, V, V3,
 };
 
-/// Vertices shaded together.
-pub const LANES: usize = 8;
+/// Vertices shaded together. Sixteen, not eight: a vertex's arithmetic is one long chain of
+/// dependent divisions and square roots, so its time goes by latency, and 16 lanes (one
+/// AVX-512 register, or two independent 8-lane halves below it) cost little more than 8
+/// (PERF.md "Whole renders", "What changed, each measured", ninth round).
+pub const LANES: usize = 16;
 // A chunk of the queue (`stages::shade`) is one block of the draw batch, so its numbers are
 // side by side.
 const _: () = assert!(LANES == DRAW_BLOCK);
@@ -174,8 +177,9 @@ impl DiffuseLanes {
 /// 8 x 8 transpose: queueing a lane's ray is then one copy, not eight lane extractions.
 #[inline(always)]
 fn ray_records(origin: V3, dir: V3, t_min: V, t_max: V) -> [[f32; 8]; LANES] {
-    let cols = [origin.x, origin.y, origin.z, dir.x, dir.y, dir.z, t_min, t_max];
-    V::columns8(LANES, |i| cols[i].to_array()).map(|row| row.to_array())
+    let mut out = [[0.0; 8]; LANES];
+    V::rows8([origin.x, origin.y, origin.z, dir.x, dir.y, dir.z, t_min, t_max], &mut out);
+    out
 }
 
 /// Shadow rays of one light draw, lane by lane; lane `l` is queued iff bit `l` of `valid`.

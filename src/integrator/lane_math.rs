@@ -6,7 +6,7 @@ use std::f32::consts::TAU;
 
 use super::diffuse::LANES;
 use crate::math::{Vec3, COS_COEFFS, SIN_COEFFS};
-use crate::simd::{SimdF32, VFloat};
+use crate::simd::{Arith, SimdF32, VFloat};
 
 pub(super) type V = VFloat<LANES>;
 pub(super) type Lanes = [f32; LANES];
@@ -169,7 +169,7 @@ pub(super) fn ray_epsilon(p: V3, scene_epsilon: f32) -> V {
 #[inline(always)]
 pub(super) fn offset_origin(p: V3, ng: V3, dir: V3, scene_epsilon: f32) -> V3 {
     let one = V::splat(1.0);
-    let side = V::select(ng.dot(dir).simd_ge(V::splat(0.0)), one, -one);
+    let side = V::select(ng.dot(dir).simd_ge(V::splat(0.0)), one, V::splat(-1.0));
     p.add(ng.scale(side * ray_epsilon(p, scene_epsilon)))
 }
 

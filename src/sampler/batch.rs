@@ -104,11 +104,11 @@ impl Numbers<'_> {
 }
 
 /// Paths whose numbers one SIMD pass draws, and the block size of the numbers' layout.
-pub const LANES: usize = 8;
+pub const LANES: usize = 16;
 
 /// Every planned number of up to `LANES` paths (`out`: their block, `[slot][lane]`).
 /// Each slot's numbers come from one fixed-size lane loop, branch-free and all in 32-bit
-/// integers, which the compiler turns into 8-wide SIMD; lanes past `paths.len()` compute
+/// integers, which the compiler turns into SIMD; lanes past `paths.len()` compute
 /// numbers nobody reads.
 fn draw_sobol_block(
     slots: &[(Decision, u32, u32)],

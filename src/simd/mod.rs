@@ -84,6 +84,10 @@ pub trait SimdF32:
     /// with shuffles instead of 8 W scalar moves.
     fn columns8(n: usize, row: impl Fn(usize) -> [f32; 8]) -> [Self; 8];
 
+    /// The inverse of `columns8`: writes `W` rows of 8 values to `out` (`out.len() >= W`), row
+    /// `i` holding lane `i` of each column, by transposes rather than 8 W lane extractions.
+    fn rows8(cols: [Self; 8], out: &mut [[f32; 8]]);
+
     /// The smallest lane of each of 8 vectors (`fast_min` semantics), with one transpose and
     /// seven vector minima rather than eight lane-by-lane folds.
     fn min_of_rows(rows: [Self; 8]) -> [f32; 8];
@@ -187,6 +191,10 @@ macro_rules! impl_simd_f32 {
             #[inline(always)]
             fn columns8(n: usize, row: impl Fn(usize) -> [f32; 8]) -> [Self; 8] {
                 <$t as Columns8>::columns8_impl(n.min($w), row)
+            }
+            #[inline(always)]
+            fn rows8(cols: [Self; 8], out: &mut [[f32; 8]]) {
+                <$t as Columns8>::rows8_impl(cols, &mut out[..$w])
             }
             #[inline(always)]
             fn from_bitmask(bits: u32) -> Self {
@@ -324,6 +332,13 @@ impl Columns8 for F32x16 {
         let lo = f32x8::columns8(n.min(8), &row);
         let hi = f32x8::columns8(n.saturating_sub(8), |i| row(i + 8));
         std::array::from_fn(|k| join16(lo[k], hi[k]))
+    }
+
+    #[inline(always)]
+    fn rows8_impl(cols: [F32x16; 8], out: &mut [[f32; 8]]) {
+        let halves = cols.map(split16);
+        f32x8::rows8(halves.map(|h| h.0), &mut out[..8]);
+        f32x8::rows8(halves.map(|h| h.1), &mut out[8..16]);
     }
 
     #[inline(always)]
@@ -466,6 +481,11 @@ mod halves {
             std::array::from_fn(|k| F32x16 { lo: lo[k], hi: hi[k] })
         }
         #[inline(always)]
+        fn rows8(cols: [Self; 8], out: &mut [[f32; 8]]) {
+            f32x8::rows8(cols.map(|c| c.lo), &mut out[..8]);
+            f32x8::rows8(cols.map(|c| c.hi), &mut out[8..16]);
+        }
+        #[inline(always)]
         fn min_of_rows(rows: [Self; 8]) -> [f32; 8] {
             f32x8::min_of_rows(rows.map(|r| r.lo.fast_min(r.hi)))
         }
@@ -481,6 +501,13 @@ impl Columns8 for f32x8 {
     fn columns8_impl(n: usize, row: impl Fn(usize) -> [f32; 8]) -> [f32x8; 8] {
         let rows = std::array::from_fn(|i| if i < n { f32x8::new(row(i)) } else { f32x8::ZERO });
         f32x8::transpose(rows)
+    }
+
+    #[inline(always)]
+    fn rows8_impl(cols: [f32x8; 8], out: &mut [[f32; 8]]) {
+        for (o, r) in out.iter_mut().zip(f32x8::transpose(cols)) {
+            *o = r.to_array();
+        }
     }
 
     #[inline(always)]
@@ -505,6 +532,18 @@ impl Columns8 for f32x4 {
     }
 
     #[inline(always)]
+    fn rows8_impl(cols: [f32x4; 8], out: &mut [[f32; 8]]) {
+        let (a, b) = (
+            f32x4::transpose([cols[0], cols[1], cols[2], cols[3]]),
+            f32x4::transpose([cols[4], cols[5], cols[6], cols[7]]),
+        );
+        for (i, o) in out.iter_mut().enumerate() {
+            let (lo, hi) = (a[i].to_array(), b[i].to_array());
+            *o = [lo[0], lo[1], lo[2], lo[3], hi[0], hi[1], hi[2], hi[3]];
+        }
+    }
+
+    #[inline(always)]
     fn fold_rows(rows: [f32x4; 8], f: impl Fn(f32x4, f32x4) -> f32x4) -> [f32; 8] {
         let half = |r: [f32x4; 4]| {
             let c = f32x4::transpose(r);
@@ -521,6 +560,7 @@ impl Columns8 for f32x4 {
 /// The width-specific transpose behind `SimdF32::columns8`.
 trait Columns8: Sized {
     fn columns8_impl(n: usize, row: impl Fn(usize) -> [f32; 8]) -> [Self; 8];
+    fn rows8_impl(cols: [Self; 8], out: &mut [[f32; 8]]);
     /// Folds each of 8 vectors' lanes with `f` (after a transpose, one vector op per step).
     fn fold_rows(rows: [Self; 8], f: impl Fn(Self, Self) -> Self) -> [f32; 8];
 }
@@ -599,6 +639,21 @@ mod tests {
         row_minima::<f32x4>();
         row_minima::<f32x8>();
         row_minima::<F32x16>();
+    }
+
+    fn rows<V: SimdF32>() {
+        let rows: Vec<[f32; 8]> =
+            (0..V::W).map(|i| std::array::from_fn(|k| (10 * i + k) as f32)).collect();
+        let mut back = vec![[0.0; 8]; V::W];
+        V::rows8(V::columns8(V::W, |i| rows[i]), &mut back);
+        assert_eq!(back, rows);
+    }
+
+    #[test]
+    fn rows_invert_columns_at_every_width() {
+        rows::<f32x4>();
+        rows::<f32x8>();
+        rows::<F32x16>();
     }
 
     #[test]
