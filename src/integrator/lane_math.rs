@@ -84,7 +84,9 @@ impl V3 {
     #[inline(always)]
     pub(super) fn is_finite(self) -> V {
         let inf = V::splat(f32::INFINITY);
-        self.x.abs().simd_lt(inf) & self.y.abs().simd_lt(inf) & self.z.abs().simd_lt(inf)
+        Arith::abs(self.x).simd_lt(inf)
+            & Arith::abs(self.y).simd_lt(inf)
+            & Arith::abs(self.z).simd_lt(inf)
     }
     /// Coordinates in the frame (t, b, n), as `Frame::to_local`.
     #[inline(always)]
@@ -161,7 +163,7 @@ pub(super) fn sincos_turns(u: V) -> (V, V) {
 #[inline(always)]
 pub(super) fn ray_epsilon(p: V3, scene_epsilon: f32) -> V {
     const ULPS: f32 = 8.0 * f32::EPSILON;
-    let largest = max(max(p.x.abs(), p.y.abs()), p.z.abs());
+    let largest = max(max(Arith::abs(p.x), Arith::abs(p.y)), Arith::abs(p.z));
     max(largest * V::splat(ULPS), V::splat(scene_epsilon))
 }
 
@@ -177,6 +179,6 @@ pub(super) fn offset_origin(p: V3, ng: V3, dir: V3, scene_epsilon: f32) -> V3 {
 #[inline(always)]
 pub(super) fn normalize_or(v: V3, fallback: V3) -> V3 {
     let rcp = V::splat(1.0) / v.dot(v).sqrt();
-    let ok = rcp.abs().simd_lt(V::splat(f32::INFINITY)) & gt(rcp, V::splat(0.0));
+    let ok = Arith::abs(rcp).simd_lt(V::splat(f32::INFINITY)) & gt(rcp, V::splat(0.0));
     V3::select(ok, v.scale(rcp), fallback)
 }
