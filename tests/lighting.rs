@@ -271,7 +271,7 @@ fn zero_light_samples_render_without_panicking() {
     }
 }
 
-/// Diffuse vertices shaded eight at a time in SIMD lanes give the same bytes as shading every
+/// Diffuse vertices shaded sixteen at a time in SIMD lanes give the same bytes as shading every
 /// vertex alone, whatever else the scene holds: every course scene under light sampling and
 /// MIS (lanes apply to every kind of scene light and to triangle emitters; emissive spheres
 /// under MIS stay scalar), at -m 1 and -m 5,

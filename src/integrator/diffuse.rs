@@ -611,6 +611,50 @@ fn continue_diffuse(
     (wi.z * V::splat(FRAC_1_PI)).store(&mut out.pdf);
 }
 
+/// Queues what every lane of a batch produced, as `queue_lane` for each lane in turn (the
+/// queues come out the same), for a chunk whose vertices all went through the lanes: the
+/// queue columns grow once per chunk, and only lanes with a ray are visited.
+pub fn queue_all_lanes(
+    out: &DiffuseOutputs,
+    lanes: &DiffuseLanes,
+    paths: &mut PathState,
+    queues: &mut ShadeOutputs,
+) {
+    let shadow = &mut *queues.shadow;
+    let count: u32 = out.shadows.iter().map(|s| s.valid.count_ones()).sum();
+    shadow.reserve(count as usize);
+    if let [s] = out.shadows.as_slice() {
+        for l in set_bits(s.valid) {
+            shadow.push(s.ray(l), s.contribution(l), lanes.path[l]);
+        }
+    } else {
+        // A lane's shadow rays stay together, in light-draw order.
+        for l in 0..lanes.len {
+            for s in out.shadows.iter().filter(|s| s.valid & (1 << l) != 0) {
+                shadow.push(s.ray(l), s.contribution(l), lanes.path[l]);
+            }
+        }
+    }
+    let b = &out.bounce;
+    queues.next.reserve(b.valid.count_ones() as usize);
+    for l in set_bits(b.valid) {
+        let path = lanes.path[l];
+        paths.throughput[path as usize] = b.throughput(l);
+        paths.bsdf_pdf[path as usize] = b.pdf(l);
+        queues.next.push(b.ray(l), path);
+    }
+}
+
+/// The positions of the set bits of `mask`, lowest first.
+#[inline(always)]
+fn set_bits(mut mask: u32) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        let l = mask.trailing_zeros() as usize;
+        mask &= mask.wrapping_sub(1);
+        (l < 32).then_some(l)
+    })
+}
+
 /// Queues what lane `l` of a batch produced for path `path`, as the scalar path would have:
 /// its shadow rays in light-draw order, then its bounce.
 #[inline]

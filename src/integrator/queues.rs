@@ -83,6 +83,12 @@ impl RayQueue {
         self.path.clear();
     }
 
+    /// Makes room for `n` more rays.
+    pub fn reserve(&mut self, n: usize) {
+        self.rays.reserve(n);
+        self.path.reserve(n);
+    }
+
     /// Queues `ray` for path `path`.
     pub fn push(&mut self, ray: Ray, path: u32) {
         self.rays.push(ray);
@@ -127,6 +133,13 @@ impl ShadowQueue {
         self.rays.clear();
         self.radiance.clear();
         self.path.clear();
+    }
+
+    /// Makes room for `n` more rays.
+    pub fn reserve(&mut self, n: usize) {
+        self.rays.reserve(n);
+        self.radiance.reserve(n);
+        self.path.reserve(n);
     }
 
     /// Queues `ray` with its radiance (or weight) for path `path`.

@@ -104,6 +104,13 @@ pub fn shade(
                 &mut scratch.lane_out,
             );
         }
+        if scratch.surfaces.is_empty() {
+            // Lanes and misses only: every ray the chunk queues comes from the lanes.
+            if scratch.lanes.len > 0 {
+                diffuse::queue_all_lanes(&scratch.lane_out, &scratch.lanes, paths, &mut out);
+            }
+            continue;
+        }
         let (mut lane, mut surfaces) = (0, scratch.surfaces.iter());
         for (q, entry) in chunk.zip(&scratch.entries) {
             let (ray, path) = (&rays.rays[q], rays.path[q]);
