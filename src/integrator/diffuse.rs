@@ -11,7 +11,7 @@
 
 use std::f32::consts::FRAC_1_PI;
 
-use super::lights::{Rectangle, TriangleEmitter, CORNER_WEIGHT_FLOOR};
+use super::lights::{Rectangle, CORNER_WEIGHT_FLOOR};
 use super::path::{DirectLighting, DrawLayout, RR_START_DEPTH};
 use super::{PathState, RenderContext, ShadeOutputs};
 use crate::geometry::prim;
@@ -506,24 +506,22 @@ fn cosine_hemisphere(u1: V, u2: V) -> V3 {
 /// look-up), the point and its pdf in lanes.
 #[inline(always)]
 fn sample_triangle_emitter(ctx: &RenderContext, p: V3, u0: V, u1: V) -> LightLanes {
-    let mut e = [TriangleEmitter::default(); LANES];
+    // Each lane's emitter as two 8-float records (zeros where none is picked), then lanes by
+    // two transposes: the 14 fields stored lane by lane made 224 scalar stores per batch.
+    let mut records = [[[0.0f32; 8]; 2]; LANES];
     let mut u0_rescaled: Lanes = [0.0; LANES];
+    let mut u0_lanes: Lanes = [0.0; LANES];
+    u0.store(&mut u0_lanes);
     let mut picked = 0u32;
-    for l in 0..LANES {
-        if let Some((t, u)) = ctx.lights.pick_triangle_emitter(u0.lane(l)) {
-            (e[l], u0_rescaled[l], picked) = (t, u, picked | 1 << l);
+    for (l, &u) in u0_lanes.iter().enumerate() {
+        if let Some((t, u)) = ctx.lights.pick_triangle_emitter(u) {
+            (records[l], u0_rescaled[l], picked) = (t.records(), u, picked | 1 << l);
         }
     }
-    let gather = |f: fn(&TriangleEmitter) -> Vec3| -> V3 {
-        let mut a = [[0.0; LANES]; 3];
-        for (l, t) in e.iter().enumerate() {
-            put(&mut a, l, f(t));
-        }
-        V3::load(&a)
-    };
-    let (a, b, c) = (gather(|t| t.a), gather(|t| t.b), gather(|t| t.c));
-    let pick_pdf = V::load(&e.map(|t| t.pick_pdf));
-    let area = V::load(&e.map(|t| t.area));
+    let [ax, ay, az, bx, by, bz, cx, cy] = V::columns8(LANES, |l| records[l][0]);
+    let [cz, rx, ry, rz, pick_pdf, area, _, _] = V::columns8(LANES, |l| records[l][1]);
+    let (a, b) = (V3 { x: ax, y: ay, z: az }, V3 { x: bx, y: by, z: bz });
+    let c = V3 { x: cx, y: cy, z: cz };
     // `lights::sample_emitter_point` for a triangle.
     let zero = V::splat(0.0);
     let s = V::load(&u0_rescaled).sqrt();
@@ -539,7 +537,7 @@ fn sample_triangle_emitter(ctx: &RenderContext, p: V3, u0: V, u1: V) -> LightLan
         finite: true,
         wi,
         dist,
-        li: gather(|t| t.radiance),
+        li: V3 { x: rx, y: ry, z: rz },
         pdf: pick_pdf * dist * dist / (area * cos_l),
         cos_light: cos_l,
         sampled: V::from_bitmask(picked) & gt(cos_l, zero) & gt(dist, zero),
