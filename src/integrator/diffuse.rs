@@ -290,8 +290,9 @@ pub fn shade_diffuse(
     lanes.pad();
     lanes.load_surfaces(ctx.scene);
     let v = vertex(lanes);
-    // The chunk's numbers sit in one block of the batch (`[slot][lane]`, the chunk's queue
-    // entries in its lanes); lane l reads the block lane of its vertex.
+    // The chunk's numbers sit in one block of the batch (`[slot][coordinate][lane]`, the
+    // chunk's queue entries in its lanes); lane l reads the block lane of its vertex, and in
+    // queue order (nearly always) a coordinate's lanes are one vector load.
     let (block, _) = draws.block_of(lanes.queue[0]);
     let block_lane: [usize; LANES] = std::array::from_fn(|l| lanes.queue[l] % DRAW_BLOCK);
     // Compared lane by lane: comparing the arrays whole loaded them with one vector load
@@ -299,13 +300,12 @@ pub fn shade_diffuse(
     // that held 8% of this function's samples at `-m 1`.
     let in_order = block_lane.iter().enumerate().all(|(l, &b)| b == l);
     let number = |slot: usize, c: usize| -> V {
-        let row = &block[slot * DRAW_BLOCK..(slot + 1) * DRAW_BLOCK];
-        let a: Lanes = if in_order {
-            std::array::from_fn(|l| row[l][c])
+        let row = &block[(2 * slot + c) * DRAW_BLOCK..(2 * slot + c + 1) * DRAW_BLOCK];
+        if in_order {
+            V::load(row)
         } else {
-            std::array::from_fn(|l| row[block_lane[l]][c])
-        };
-        V::load(&a)
+            V::load(&std::array::from_fn::<f32, LANES, _>(|l| row[block_lane[l]]))
+        }
     };
     out.shadows.clear();
     let mut slot = layout.light;

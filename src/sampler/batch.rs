@@ -10,8 +10,9 @@
 use super::{sobol, Decision, PathSampler, SamplerKind};
 
 /// One 2D number per (queued path, planned slot). Stored by blocks of `LANES` queue entries,
-/// slot-major within a block (`[block][slot][lane]`), so that the lanes of a shading chunk find
-/// each slot's numbers side by side and the draw loop writes them without a scatter.
+/// slot-major within a block and each slot's first coordinates before its second ones
+/// (`[block][slot][coordinate][lane]`), so that the lanes of a shading chunk load a slot's
+/// coordinate with one vector load and the draw loop writes its lane arrays as they are.
 #[derive(Default)]
 pub struct DrawBatch {
     depth: u32,
@@ -19,7 +20,7 @@ pub struct DrawBatch {
     slots: Vec<(Decision, u32, u32)>,
     /// Per slot: the Sobol dimension key of `(decision, depth)`.
     dimensions: Vec<u32>,
-    numbers: Vec<[f32; 2]>,
+    numbers: Vec<f32>,
 }
 
 impl DrawBatch {
@@ -52,15 +53,16 @@ impl DrawBatch {
             return; // Nothing planned (normal shading, or vertices past the last depth).
         }
         let stride = self.slots.len();
-        self.numbers.resize(order.len().div_ceil(LANES) * LANES * stride, [0.0; 2]);
-        let blocks = order.chunks(LANES).zip(self.numbers.chunks_mut(LANES * stride));
+        self.numbers.resize(order.len().div_ceil(LANES) * 2 * LANES * stride, 0.0);
+        let blocks = order.chunks(LANES).zip(self.numbers.chunks_mut(2 * LANES * stride));
         match kind {
             SamplerKind::Independent => {
                 for (paths, out) in blocks {
                     for (l, &p) in paths.iter().enumerate() {
                         let sampler = &mut samplers[p as usize];
                         for k in 0..stride {
-                            out[k * LANES + l] = [sampler.rng.next_f32(), sampler.rng.next_f32()];
+                            out[2 * k * LANES + l] = sampler.rng.next_f32();
+                            out[(2 * k + 1) * LANES + l] = sampler.rng.next_f32();
                         }
                     }
                 }
@@ -80,10 +82,11 @@ impl DrawBatch {
         Numbers { block, lane }
     }
 
-    /// The block holding queue entry `q` (`[slot][lane]`, `LANES` lanes per slot) and its lane.
+    /// The block holding queue entry `q` (`[slot][coordinate][lane]`, `LANES` lanes per
+    /// coordinate) and its lane.
     #[inline]
-    pub fn block_of(&self, q: usize) -> (&[[f32; 2]], usize) {
-        let n = self.slots.len() * LANES;
+    pub fn block_of(&self, q: usize) -> (&[f32], usize) {
+        let n = self.slots.len() * 2 * LANES;
         (&self.numbers[q / LANES * n..(q / LANES + 1) * n], q % LANES)
     }
 }
@@ -91,7 +94,7 @@ impl DrawBatch {
 /// One queue entry's numbers in a `DrawBatch`.
 #[derive(Clone, Copy)]
 pub struct Numbers<'a> {
-    block: &'a [[f32; 2]],
+    block: &'a [f32],
     lane: usize,
 }
 
@@ -99,14 +102,16 @@ impl Numbers<'_> {
     /// The number of planned slot `slot`.
     #[inline]
     pub fn get(&self, slot: usize) -> [f32; 2] {
-        self.block[slot * LANES + self.lane]
+        let at = 2 * slot * LANES + self.lane;
+        [self.block[at], self.block[at + LANES]]
     }
 }
 
 /// Paths whose numbers one SIMD pass draws, and the block size of the numbers' layout.
 pub const LANES: usize = 16;
 
-/// Every planned number of up to `LANES` paths (`out`: their block, `[slot][lane]`).
+/// Every planned number of up to `LANES` paths (`out`: their block,
+/// `[slot][coordinate][lane]`).
 /// Each slot's numbers come from one fixed-size lane loop, branch-free and all in 32-bit
 /// integers, which the compiler turns into SIMD; lanes past `paths.len()` compute
 /// numbers nobody reads.
@@ -115,7 +120,7 @@ fn draw_sobol_block(
     dimensions: &[u32],
     samplers: &[PathSampler],
     paths: &[u32],
-    out: &mut [[f32; 2]],
+    out: &mut [f32],
 ) {
     let (mut pixel_key, mut sample) = ([0u32; LANES], [0u32; LANES]);
     for (l, &p) in paths.iter().enumerate() {
@@ -128,10 +133,8 @@ fn draw_sobol_block(
             let key = sobol::mix32(pixel_key[l] ^ dimension);
             [x[l], y[l]] = sobol::sobol_2d(key, sample[l].wrapping_mul(count).wrapping_add(sub));
         }
-        let row = &mut out[k * LANES..(k + 1) * LANES];
-        for l in 0..LANES {
-            row[l] = [x[l], y[l]];
-        }
+        out[2 * k * LANES..(2 * k + 1) * LANES].copy_from_slice(&x);
+        out[(2 * k + 1) * LANES..(2 * k + 2) * LANES].copy_from_slice(&y);
     }
 }
 
