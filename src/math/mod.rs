@@ -8,6 +8,16 @@ pub use exact::ExactRgb;
 pub use glam::{Mat4, Vec3};
 pub use ray::{Hit, Ray};
 
+/// The coordinates of `points` as one flat slice (x, y, z of each in turn), for gathers that
+/// index single coordinates.
+pub fn flat_coordinates(points: &[Vec3]) -> &[f32] {
+    const _: () = assert!(std::mem::size_of::<Vec3>() == 12 && std::mem::align_of::<Vec3>() == 4);
+    // SAFETY: `glam::Vec3` is `#[repr(C)] { x: f32, y: f32, z: f32 }` without padding (checked
+    // above), so `points` is `3 * len` initialised, suitably aligned f32 values; the borrow of
+    // `points` lives as long as the result.
+    unsafe { std::slice::from_raw_parts(points.as_ptr().cast::<f32>(), points.len() * 3) }
+}
+
 /// An axis-aligned bounding box. The empty box has `min = +inf`, `max = -inf`, so that growing it
 /// by any point or box gives that point or box.
 #[derive(Debug, Clone, Copy, PartialEq)]

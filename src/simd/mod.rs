@@ -117,6 +117,25 @@ pub fn prefetch<T>(p: *const T) {
 /// All bits set: a true mask lane.
 pub const TRUE: f32 = f32::from_bits(!0);
 
+/// `out[i] = base[index[i]]` for 16 indices, if every index is within `base`; otherwise
+/// `false`, with `out` unchanged. One AVX-512 gather per call where the build has AVX-512
+/// (the 16 loads of a shading chunk's surfaces then overlap), a plain loop below it.
+#[inline(always)]
+pub fn gather16<T: Copy + Default>(base: &[T], index: &[u32; 16], out: &mut [T; 16]) -> bool {
+    if index.iter().fold(0, |m, &i| m.max(i)) as usize >= base.len() {
+        return false;
+    }
+    #[cfg(target_feature = "avx512f")]
+    if std::mem::size_of::<T>() == 4 {
+        zmm::gather32(base, index, out);
+        return true;
+    }
+    for (o, &i) in out.iter_mut().zip(index) {
+        *o = base[i as usize];
+    }
+    true
+}
+
 macro_rules! impl_simd_f32 {
     ($t:ident, $u:ident, $w:literal) => {
         impl Arith for $t {
@@ -275,7 +294,8 @@ impl LaneMemory for F32x16 {
 mod zmm {
     use std::arch::x86_64::{
         __m256d, __m512, __m512d, _mm512_castpd256_pd512, _mm512_castpd512_pd256,
-        _mm512_extractf64x4_pd, _mm512_insertf64x4, _mm512_loadu_ps, _mm512_storeu_ps,
+        _mm512_extractf64x4_pd, _mm512_i32gather_ps, _mm512_insertf64x4, _mm512_loadu_ps,
+        _mm512_loadu_si512, _mm512_storeu_ps,
     };
     use std::mem::transmute;
 
@@ -302,6 +322,24 @@ mod zmm {
     pub fn store(v: F32x16, out: &mut [f32]) {
         let out = &mut out[..16];
         unsafe { _mm512_storeu_ps(out.as_mut_ptr(), transmute::<F32x16, __m512>(v)) }
+    }
+
+    /// `out[i] = base[index[i]]` for 4-byte `T`, every index already checked to be within
+    /// `base` (`super::gather16`).
+    #[inline(always)]
+    pub fn gather32<T: Copy>(base: &[T], index: &[u32; 16], out: &mut [T; 16]) {
+        debug_assert!(std::mem::size_of::<T>() == 4);
+        debug_assert!(index.iter().all(|&i| (i as usize) < base.len()));
+        // The gather reads its offsets as signed: indices below `base.len() <= 2^31 - 1` are
+        // non-negative there.
+        assert!(base.len() <= i32::MAX as usize);
+        // SAFETY (besides the module's): every index is below `base.len()` (checked by
+        // `gather16`), so each 4-byte load at `base + 4 * index` reads an element of `base`.
+        unsafe {
+            let offsets = _mm512_loadu_si512(index.as_ptr().cast());
+            let v = _mm512_i32gather_ps::<4>(offsets, base.as_ptr().cast::<f32>());
+            _mm512_storeu_ps(out.as_mut_ptr().cast::<f32>(), v);
+        }
     }
 
     /// One vector from two 8-lane halves (lanes 0-7, then 8-15).
@@ -647,6 +685,24 @@ mod tests {
         let mut back = vec![[0.0; 8]; V::W];
         V::rows8(V::columns8(V::W, |i| rows[i]), &mut back);
         assert_eq!(back, rows);
+    }
+
+    #[test]
+    fn gathers_read_the_indexed_values_and_refuse_indices_out_of_range() {
+        let base: Vec<f32> = (0..100).map(|i| i as f32 * 0.5).collect();
+        let index: [u32; 16] = std::array::from_fn(|i| (i as u32 * 37) % 100);
+        let mut out = [0.0f32; 16];
+        assert!(gather16(&base, &index, &mut out));
+        assert_eq!(out, index.map(|i| base[i as usize]));
+        let words: Vec<u32> = (0..100).map(|i| i * 7).collect();
+        let mut got = [0u32; 16];
+        assert!(gather16(&words, &index, &mut got));
+        assert_eq!(got, index.map(|i| words[i as usize]));
+        let mut bad = index;
+        bad[15] = 100;
+        let before = out;
+        assert!(!gather16(&base, &bad, &mut out));
+        assert_eq!(out, before);
     }
 
     #[test]
