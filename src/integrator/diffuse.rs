@@ -11,9 +11,13 @@
 
 use std::f32::consts::FRAC_1_PI;
 
-use super::lights::{Rectangle, CORNER_WEIGHT_FLOOR};
+use super::diffuse_out::ray_records;
+pub use super::diffuse_out::{
+    queue_all_lanes, queue_lane, BounceLanes, DiffuseOutputs, ShadowLanes,
+};
+use super::lights::{Rectangle, TriangleEmitter, CORNER_WEIGHT_FLOOR};
 use super::path::{DirectLighting, DrawLayout, RR_START_DEPTH};
-use super::{PathState, RenderContext, ShadeOutputs};
+use super::RenderContext;
 use crate::geometry::prim;
 use crate::math::{flat_coordinates, Hit, Ray, Vec3};
 use crate::sampler::{DrawBatch, DRAW_BLOCK};
@@ -36,9 +40,10 @@ const _: () = assert!(LANES == DRAW_BLOCK);
 /// Up to `LANES` diffuse vertices, loaded lane by lane: each lane's ray and hit, and what
 /// reconstructing its surface reads (`load_surfaces`), so that `Surface::at` runs in lanes.
 /// A lane's ray and its other per-vertex values are pushed as records of 8 floats and turned
-/// into lanes by one 8 x 8 transpose each (`vertex`): a vertex's values stored one float per
-/// lane array cost 27 scalar stores per vertex, and the vector loads after them waited on
-/// failed store-to-load forwards.
+/// into lanes by 8 x 8 transposes (`vertex`): a vertex's values stored one float per lane
+/// array cost 27 scalar stores per vertex, and the vector loads after them waited on failed
+/// store-to-load forwards. The surfaces' corners and normals are gathered in AVX-512 builds
+/// (`gather_triangles`) and loaded lane by lane below it.
 #[derive(Default)]
 pub struct DiffuseLanes {
     /// Lanes in use: vertices pushed so far (at most `LANES`).
@@ -65,10 +70,6 @@ pub struct DiffuseLanes {
 
 fn put(a: &mut [Lanes; 3], l: usize, v: Vec3) {
     (a[0][l], a[1][l], a[2][l]) = (v.x, v.y, v.z);
-}
-
-fn get(a: &[Lanes; 3], l: usize) -> Vec3 {
-    Vec3::new(a[0][l], a[1][l], a[2][l])
 }
 
 /// A lane's vertex values from `DiffuseLanes::values`, as lanes.
@@ -213,70 +214,6 @@ impl DiffuseLanes {
     fn used(&self) -> u32 {
         (1u32 << self.len) - 1
     }
-}
-
-/// The rays of `LANES` lanes as records of 8 floats (`Ray::record`), by one
-/// 8 x 8 transpose: queueing a lane's ray is then one copy, not eight lane extractions.
-#[inline(always)]
-fn ray_records(origin: V3, dir: V3, t_min: V, t_max: V) -> [[f32; 8]; LANES] {
-    let mut out = [[0.0; 8]; LANES];
-    V::rows8([origin.x, origin.y, origin.z, dir.x, dir.y, dir.z, t_min, t_max], &mut out);
-    out
-}
-
-/// Shadow rays of one light draw, lane by lane; lane `l` is queued iff bit `l` of `valid`.
-#[derive(Default, Clone)]
-pub struct ShadowLanes {
-    /// Lanes with a shadow ray to queue, as a bit mask.
-    pub valid: u32,
-    rays: [[f32; 8]; LANES],
-    contribution: [Lanes; 3],
-}
-
-impl ShadowLanes {
-    /// The shadow ray of lane `l`.
-    pub fn ray(&self, l: usize) -> Ray {
-        Ray::from_record(&self.rays[l])
-    }
-    /// What lane `l`'s shadow ray adds to its path's radiance if unblocked.
-    pub fn contribution(&self, l: usize) -> Vec3 {
-        get(&self.contribution, l)
-    }
-}
-
-/// Continuation rays, lane by lane; lane `l` continues iff bit `l` of `valid`.
-#[derive(Default)]
-pub struct BounceLanes {
-    /// Lanes that continue with a bounce, as a bit mask.
-    pub valid: u32,
-    rays: [[f32; 8]; LANES],
-    throughput: [Lanes; 3],
-    pdf: Lanes,
-}
-
-impl BounceLanes {
-    /// The continuation ray of lane `l`.
-    pub fn ray(&self, l: usize) -> Ray {
-        Ray::from_record(&self.rays[l])
-    }
-    /// The path throughput of lane `l` after the bounce: times the albedo, divided by the
-    /// Russian-roulette survival probability where roulette applies.
-    pub fn throughput(&self, l: usize) -> Vec3 {
-        get(&self.throughput, l)
-    }
-    /// The solid-angle pdf of lane `l`'s bounce direction, cos / pi.
-    pub fn pdf(&self, l: usize) -> f32 {
-        self.pdf[l]
-    }
-}
-
-/// What one batch queues: a shadow ray per light draw and lane, and a bounce per lane.
-#[derive(Default)]
-pub struct DiffuseOutputs {
-    /// One `ShadowLanes` per light draw, in light-draw order.
-    pub shadows: Vec<ShadowLanes>,
-    /// The continuation of every lane.
-    pub bounce: BounceLanes,
 }
 
 /// Whether `shade_diffuse` can shade this integrator's vertices on diffuse surfaces: light
@@ -557,7 +494,7 @@ fn sample_triangle_emitter(ctx: &RenderContext, p: V3, u0: V, u1: V) -> LightLan
     let mut picked = 0u32;
     for (l, &u) in u0_lanes.iter().enumerate() {
         if let Some((t, u)) = ctx.lights.pick_triangle_emitter(u) {
-            (records[l], u0_rescaled[l], picked) = (t.records(), u, picked | 1 << l);
+            (records[l], u0_rescaled[l], picked) = (emitter_records(&t), u, picked | 1 << l);
         }
     }
     let [ax, ay, az, bx, by, bz, cx, cy] = V::columns8(LANES, |l| records[l][0]);
@@ -584,6 +521,14 @@ fn sample_triangle_emitter(ctx: &RenderContext, p: V3, u0: V, u1: V) -> LightLan
         cos_light: cos_l,
         sampled: V::from_bitmask(picked) & gt(cos_l, zero) & gt(dist, zero),
     }
+}
+
+/// A triangle emitter's fields as two records of 8 floats (corners, then the third corner's
+/// z, radiance, pick pdf and area), so that lanes of emitters are made by two transposes.
+#[inline(always)]
+fn emitter_records(t: &TriangleEmitter) -> [[f32; 8]; 2] {
+    let (a, b, c, r) = (t.a, t.b, t.c, t.radiance);
+    [[a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y], [c.z, r.x, r.y, r.z, t.pick_pdf, t.area, 0.0, 0.0]]
 }
 
 /// `path::queue_shadow_ray`: the occlusion test for one light sample per lane.
@@ -649,69 +594,4 @@ fn continue_diffuse(
     out.rays = ray_records(origin, dir, zero, V::splat(f32::INFINITY));
     t.store(&mut out.throughput);
     (wi.z * V::splat(FRAC_1_PI)).store(&mut out.pdf);
-}
-
-/// Queues what every lane of a batch produced, as `queue_lane` for each lane in turn (the
-/// queues come out the same), for a chunk whose vertices all went through the lanes: the
-/// queue columns grow once per chunk, and only lanes with a ray are visited.
-pub fn queue_all_lanes(
-    out: &DiffuseOutputs,
-    lanes: &DiffuseLanes,
-    paths: &mut PathState,
-    queues: &mut ShadeOutputs,
-) {
-    let shadow = &mut *queues.shadow;
-    let count: u32 = out.shadows.iter().map(|s| s.valid.count_ones()).sum();
-    shadow.reserve(count as usize);
-    if let [s] = out.shadows.as_slice() {
-        for l in set_bits(s.valid) {
-            shadow.push(s.ray(l), s.contribution(l), lanes.path[l]);
-        }
-    } else {
-        // A lane's shadow rays stay together, in light-draw order.
-        for l in 0..lanes.len {
-            for s in out.shadows.iter().filter(|s| s.valid & (1 << l) != 0) {
-                shadow.push(s.ray(l), s.contribution(l), lanes.path[l]);
-            }
-        }
-    }
-    let b = &out.bounce;
-    queues.next.reserve(b.valid.count_ones() as usize);
-    for l in set_bits(b.valid) {
-        let path = lanes.path[l];
-        paths.throughput[path as usize] = b.throughput(l);
-        paths.bsdf_pdf[path as usize] = b.pdf(l);
-        queues.next.push(b.ray(l), path);
-    }
-}
-
-/// The positions of the set bits of `mask`, lowest first.
-#[inline(always)]
-fn set_bits(mut mask: u32) -> impl Iterator<Item = usize> {
-    std::iter::from_fn(move || {
-        let l = mask.trailing_zeros() as usize;
-        mask &= mask.wrapping_sub(1);
-        (l < 32).then_some(l)
-    })
-}
-
-/// Queues what lane `l` of a batch produced for path `path`, as the scalar path would have:
-/// its shadow rays in light-draw order, then its bounce.
-#[inline]
-pub fn queue_lane(
-    out: &DiffuseOutputs,
-    l: usize,
-    path: u32,
-    paths: &mut PathState,
-    queues: &mut ShadeOutputs,
-) {
-    for s in out.shadows.iter().filter(|s| s.valid & (1 << l) != 0) {
-        queues.shadow.push(s.ray(l), s.contribution(l), path);
-    }
-    let b = &out.bounce;
-    if b.valid & (1 << l) != 0 {
-        paths.throughput[path as usize] = b.throughput(l);
-        paths.bsdf_pdf[path as usize] = b.pdf(l);
-        queues.next.push(b.ray(l), path);
-    }
 }

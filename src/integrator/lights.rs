@@ -56,19 +56,6 @@ pub struct TriangleEmitter {
     pub area: f32,
 }
 
-impl TriangleEmitter {
-    /// Its fields as two records of 8 floats (corners, then the third corner's z, radiance,
-    /// pick pdf and area), so that lanes of emitters are made by two transposes.
-    #[inline(always)]
-    pub fn records(&self) -> [[f32; 8]; 2] {
-        let (a, b, c, r) = (self.a, self.b, self.c, self.radiance);
-        [
-            [a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y],
-            [c.z, r.x, r.y, r.z, self.pick_pdf, self.area, 0.0, 0.0],
-        ]
-    }
-}
-
 /// The lights of one render.
 #[derive(Debug, Clone, Default)]
 pub struct LightSet {

@@ -10,6 +10,7 @@
 pub mod bsdf;
 mod context;
 pub mod diffuse;
+mod diffuse_out;
 mod lane_math;
 pub mod lights;
 mod path;
