@@ -147,15 +147,14 @@ impl DiffuseLanes {
     fn load_surfaces(&mut self, scene: &Scene) {
         // Gathers pay where one instruction makes a lane vector (AVX-512: -m 5 renders
         // 0.98-0.99x); below it the checked loop was slower than the loads below (1.04x).
+        self.spheres = 0;
         if cfg!(target_feature = "avx512f")
             && self.prim.iter().all(|&p| !prim::is_sphere(p))
             && self.gather_triangles(scene)
         {
-            self.spheres = 0;
             return;
         }
         let mut vertices = [[0u32; 3]; LANES];
-        self.spheres = 0;
         for (l, v) in vertices.iter_mut().enumerate() {
             if prim::is_sphere(self.prim[l]) {
                 self.spheres |= 1 << l;

@@ -4,7 +4,7 @@
 
 use super::diffuse::LANES;
 use super::lane_math::{Lanes, V, V3};
-use super::{PathState, ShadeOutputs};
+use super::{PathState, RayQueue, ShadeOutputs, ShadowQueue};
 use crate::math::{Ray, Vec3};
 use crate::simd::SimdF32;
 
@@ -85,28 +85,23 @@ pub fn queue_all_lanes(
     paths: &mut PathState,
     queues: &mut ShadeOutputs,
 ) {
-    let shadow = &mut *queues.shadow;
+    let (shadow, next) = (&mut *queues.shadow, &mut *queues.next);
     let count: u32 = out.shadows.iter().map(|s| s.valid.count_ones()).sum();
     shadow.reserve(count as usize);
     if let [s] = out.shadows.as_slice() {
+        // One light draw (the common case): its lanes straight, without the per-lane draw loop
+        // of `queue_shadows` (that loop here cost -m 5 renders 1-2%).
         for l in set_bits(s.valid) {
             shadow.push(s.ray(l), s.contribution(l), lanes.path[l]);
         }
     } else {
-        // A lane's shadow rays stay together, in light-draw order.
-        for l in 0..lanes.len {
-            for s in out.shadows.iter().filter(|s| s.valid & (1 << l) != 0) {
-                shadow.push(s.ray(l), s.contribution(l), lanes.path[l]);
-            }
+        for l in set_bits(out.shadows.iter().fold(0, |m, s| m | s.valid)) {
+            queue_shadows(out, l, lanes.path[l], shadow);
         }
     }
-    let b = &out.bounce;
-    queues.next.reserve(b.valid.count_ones() as usize);
-    for l in set_bits(b.valid) {
-        let path = lanes.path[l];
-        paths.throughput[path as usize] = b.throughput(l);
-        paths.bsdf_pdf[path as usize] = b.pdf(l);
-        queues.next.push(b.ray(l), path);
+    next.reserve(out.bounce.valid.count_ones() as usize);
+    for l in set_bits(out.bounce.valid) {
+        queue_bounce(&out.bounce, l, lanes.path[l], paths, next);
     }
 }
 
@@ -130,13 +125,24 @@ pub fn queue_lane(
     paths: &mut PathState,
     queues: &mut ShadeOutputs,
 ) {
+    queue_shadows(out, l, path, queues.shadow);
+    if out.bounce.valid & (1 << l) != 0 {
+        queue_bounce(&out.bounce, l, path, paths, queues.next);
+    }
+}
+
+/// Lane `l`'s shadow rays, in light-draw order.
+#[inline(always)]
+fn queue_shadows(out: &DiffuseOutputs, l: usize, path: u32, shadow: &mut ShadowQueue) {
     for s in out.shadows.iter().filter(|s| s.valid & (1 << l) != 0) {
-        queues.shadow.push(s.ray(l), s.contribution(l), path);
+        shadow.push(s.ray(l), s.contribution(l), path);
     }
-    let b = &out.bounce;
-    if b.valid & (1 << l) != 0 {
-        paths.throughput[path as usize] = b.throughput(l);
-        paths.bsdf_pdf[path as usize] = b.pdf(l);
-        queues.next.push(b.ray(l), path);
-    }
+}
+
+/// Lane `l`'s bounce (which it has): the path's new throughput and pdf, and its ray.
+#[inline(always)]
+fn queue_bounce(b: &BounceLanes, l: usize, path: u32, paths: &mut PathState, next: &mut RayQueue) {
+    paths.throughput[path as usize] = b.throughput(l);
+    paths.bsdf_pdf[path as usize] = b.pdf(l);
+    next.push(b.ray(l), path);
 }

@@ -125,8 +125,9 @@ pub fn gather16<T: Copy + Default>(base: &[T], index: &[u32; 16], out: &mut [T; 
     if index.iter().fold(0, |m, &i| m.max(i)) as usize >= base.len() {
         return false;
     }
+    // The gather's offsets are signed 32-bit: slices past 2^31 - 1 elements take the loop.
     #[cfg(target_feature = "avx512f")]
-    if std::mem::size_of::<T>() == 4 {
+    if std::mem::size_of::<T>() == 4 && base.len() <= i32::MAX as usize {
         zmm::gather32(base, index, out);
         return true;
     }
@@ -325,16 +326,14 @@ mod zmm {
     }
 
     /// `out[i] = base[index[i]]` for 4-byte `T`, every index already checked to be within
-    /// `base` (`super::gather16`).
+    /// `base`, and `base` at most 2^31 - 1 elements long (`super::gather16`).
     #[inline(always)]
     pub fn gather32<T: Copy>(base: &[T], index: &[u32; 16], out: &mut [T; 16]) {
-        debug_assert!(std::mem::size_of::<T>() == 4);
+        debug_assert!(std::mem::size_of::<T>() == 4 && base.len() <= i32::MAX as usize);
         debug_assert!(index.iter().all(|&i| (i as usize) < base.len()));
-        // The gather reads its offsets as signed: indices below `base.len() <= 2^31 - 1` are
-        // non-negative there.
-        assert!(base.len() <= i32::MAX as usize);
-        // SAFETY (besides the module's): every index is below `base.len()` (checked by
-        // `gather16`), so each 4-byte load at `base + 4 * index` reads an element of `base`.
+        // SAFETY (besides the module's): every index is below `base.len() <= 2^31 - 1`
+        // (checked by `gather16`), so it is a non-negative signed offset too, and each 4-byte
+        // load at `base + 4 * index` reads an element of `base`.
         unsafe {
             let offsets = _mm512_loadu_si512(index.as_ptr().cast());
             let v = _mm512_i32gather_ps::<4>(offsets, base.as_ptr().cast::<f32>());
