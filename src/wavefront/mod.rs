@@ -166,7 +166,7 @@ pub struct Workspace {
 pub struct PixelStats {
     /// Exact radiance sums: any split of the samples adds up to the same bytes.
     pub sum: Vec<ExactRgb>,
-    /// Sums of each sample's luminance.
+    /// Sums of each sample's luminance (adaptive sampling only; zero without it).
     pub lum_sum: Vec<f64>,
     /// Sums of each sample's squared luminance.
     pub lum_sq_sum: Vec<f64>,
@@ -338,5 +338,5 @@ fn trace_sample_batch(
         stats.bounce_rays += ws.rays.len() as u64;
         depth += 1;
     }
-    stages::accumulate(&ws.paths, &mut ws.pixels);
+    stages::accumulate(&ws.paths, &mut ws.pixels, ctx.adaptive.is_some());
 }

@@ -7,8 +7,9 @@ use crate::integrator::lights::luminance;
 /// samples were split, and a pixel's run of samples is added in one call (`add_all`); the f64
 /// moments of adaptive sampling are summed in the order the
 /// paths were generated (pixel by pixel, sample by sample), the same however the work was
-/// scheduled.
-pub fn accumulate(paths: &PathState, pixels: &mut PixelStats) {
+/// scheduled. Only adaptive sampling (`moments`) reads those moments: without it they are not
+/// summed.
+pub fn accumulate(paths: &PathState, pixels: &mut PixelStats, moments: bool) {
     // A pixel's samples are consecutive paths (`generate_camera_rays`): one run per pixel, its
     // moments summed in registers (in the same order, so to the same bits) rather than through
     // memory, where each add waited on the previous one's store.
@@ -18,13 +19,15 @@ pub fn accumulate(paths: &PathState, pixels: &mut PixelStats) {
         let len = paths.pixel[start..].iter().take_while(|&&p| p == pixel).count();
         let run = &paths.radiance[start..start + len];
         let i = pixel as usize;
-        let (mut sum, mut sq) = (pixels.lum_sum[i], pixels.lum_sq_sum[i]);
-        for radiance in run {
-            let lum = luminance(*radiance) as f64;
-            sum += lum;
-            sq += lum * lum;
+        if moments {
+            let (mut sum, mut sq) = (pixels.lum_sum[i], pixels.lum_sq_sum[i]);
+            for radiance in run {
+                let lum = luminance(*radiance) as f64;
+                sum += lum;
+                sq += lum * lum;
+            }
+            (pixels.lum_sum[i], pixels.lum_sq_sum[i]) = (sum, sq);
         }
-        (pixels.lum_sum[i], pixels.lum_sq_sum[i]) = (sum, sq);
         pixels.count[i] += len as u32;
         pixels.sum[i].add_all(run);
         start += len;
