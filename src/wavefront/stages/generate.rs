@@ -87,10 +87,15 @@ pub fn generate_camera_rays(
     for first in (0..paths.len()).step_by(LANES) {
         let ids = first..(first + LANES).min(paths.len());
         let (mut px, mut py) = ([0.0f32; LANES], [0.0f32; LANES]);
+        // A pixel's samples are consecutive paths: its coordinates are divided out once.
+        let mut pixel = (u32::MAX, 0.0, 0.0);
         for (l, p) in ids.clone().enumerate() {
             let local = paths.pixel[p];
-            px[l] = (tile.x0 + local % tile.width) as f32;
-            py[l] = (tile.y0 + local / tile.width) as f32;
+            if local != pixel.0 {
+                let (x, y) = (tile.x0 + local % tile.width, tile.y0 + local / tile.width);
+                pixel = (local, x as f32, y as f32);
+            }
+            (px[l], py[l]) = (pixel.1, pixel.2);
         }
         let (jx, jy) = jitter(ctx, &mut paths.sampler[ids.clone()]);
         for l in 0..LANES {
