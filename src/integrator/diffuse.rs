@@ -486,16 +486,19 @@ fn cosine_hemisphere(u1: V, u2: V) -> V3 {
 fn sample_triangle_emitter(ctx: &RenderContext, p: V3, u0: V, u1: V) -> LightLanes {
     // Each lane's emitter as two 8-float records (zeros where none is picked), then lanes by
     // two transposes: the 14 fields stored lane by lane made 224 scalar stores per batch.
-    let mut records = [[[0.0f32; 8]; 2]; LANES];
     let mut u0_rescaled: Lanes = [0.0; LANES];
     let mut u0_lanes: Lanes = [0.0; LANES];
     u0.store(&mut u0_lanes);
     let mut picked = 0u32;
-    for (l, &u) in u0_lanes.iter().enumerate() {
-        if let Some((t, u)) = ctx.lights.pick_triangle_emitter(u) {
-            (records[l], u0_rescaled[l], picked) = (emitter_records(&t), u, picked | 1 << l);
-        }
-    }
+    // Each record written once (a zeroed array first cost a 1 KiB memset per chunk).
+    let records: [[[f32; 8]; 2]; LANES] =
+        std::array::from_fn(|l| match ctx.lights.pick_triangle_emitter(u0_lanes[l]) {
+            Some((t, u)) => {
+                (u0_rescaled[l], picked) = (u, picked | 1 << l);
+                emitter_records(&t)
+            }
+            None => [[0.0; 8]; 2],
+        });
     let [ax, ay, az, bx, by, bz, cx, cy] = V::columns8(LANES, |l| records[l][0]);
     let [cz, rx, ry, rz, pick_pdf, area, _, _] = V::columns8(LANES, |l| records[l][1]);
     let (a, b) = (V3 { x: ax, y: ay, z: az }, V3 { x: bx, y: by, z: bz });

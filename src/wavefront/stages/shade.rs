@@ -83,6 +83,16 @@ pub fn shade(
                         {
                             Entry::Miss
                         }
+                        // An emitter that counts adds its emission and ends the path: it
+                        // queues no rays, so it is shaded here and the chunk's rays still
+                        // come from its lanes alone (`queue_all_lanes`).
+                        None if matches!(material, Material::Emission { .. }) => {
+                            let s = Surface::at(ctx.scene, ray, hit);
+                            let numbers = (&layout, draws.of(q));
+                            ctx.integrator
+                                .shade_hit(ctx, depth, ray, &s, path, paths, numbers, &mut out);
+                            Entry::Miss
+                        }
                         None => {
                             scratch.surfaces.push(Surface::at(ctx.scene, ray, hit));
                             Entry::Scalar
