@@ -13,7 +13,8 @@ use crate::scene::Material;
 /// a whole `Surface` each.
 #[derive(Clone, Copy)]
 enum Entry {
-    /// The ray left the scene.
+    /// Nothing more to do: the ray left the scene, its hit counts nothing, or it hit an emitter,
+    /// which the walk has already shaded.
     Miss,
     /// In the chunk's lanes, which reconstruct the surface themselves.
     Lane,
@@ -136,7 +137,8 @@ pub fn shade(
                 }
                 // Rays that leave the scene see black: scene lights (the sky included) are not
                 // geometry and are reached only by light sampling (SCENE_FORMAT.md). Emitters
-                // that count nothing at this vertex end the path the same way.
+                // that count nothing at this vertex end the path the same way; the others
+                // were shaded in the walk above.
                 Entry::Miss => {}
             }
         }
