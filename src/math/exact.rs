@@ -14,7 +14,7 @@
 //! f32 that only ever adds non-finite values, an associative operation too (inf + inf = inf,
 //! inf - inf = NaN, NaN + x = NaN), and decide the mean when present.
 
-use crate::math::Vec3;
+use crate::math::{flat_coordinates, Vec3};
 
 /// Fractional bits of the fixed-point samples.
 pub const FRAC_BITS: u32 = 56;
@@ -53,7 +53,7 @@ impl ExactRgb {
     /// at the end: integer sums, so the same sum in any order.
     pub fn add_all(&mut self, rgb: &[Vec3]) {
         for run in rgb.chunks(RUN) {
-            let flat = crate::math::flat_coordinates(run);
+            let flat = flat_coordinates(run);
             let small = flat.iter().fold(true, |all, x| all & (x.abs() < SMALL));
             if !small {
                 run.iter().for_each(|v| self.add(v.to_array()));

@@ -71,27 +71,21 @@ pub fn shade(
                             scratch.lanes.push(path, q, ray, hit, throughput, albedo);
                             Entry::Lane
                         }
-                        // An emitter that counts nothing here ends the path as a miss does.
-                        None if matches!(material, Material::Emission { .. })
-                            && ctx
-                                .integrator
-                                .ignores_emitter_hit(depth, paths.bsdf_pdf[path as usize]) =>
-                        {
-                            Entry::Miss
-                        }
-                        None if !matches!(material, Material::Emission { .. })
-                            && ctx.integrator.ignores_surface_hit(depth, ctx.max_depth) =>
-                        {
-                            Entry::Miss
-                        }
-                        // An emitter that counts adds its emission and ends the path: it
-                        // queues no rays, so it is shaded here and the chunk's rays still
+                        // An emitter ends the path. One that counts here adds its emission;
+                        // it queues no rays, so it is shaded now and the chunk's rays still
                         // come from its lanes alone (`queue_all_lanes`).
                         None if matches!(material, Material::Emission { .. }) => {
-                            let s = Surface::at(ctx.scene, ray, hit);
-                            let numbers = (&layout, draws.of(q));
-                            ctx.integrator
-                                .shade_hit(ctx, depth, ray, &s, path, paths, numbers, &mut out);
+                            let pdf = paths.bsdf_pdf[path as usize];
+                            if !ctx.integrator.ignores_emitter_hit(depth, pdf) {
+                                let s = Surface::at(ctx.scene, ray, hit);
+                                let numbers = (&layout, draws.of(q));
+                                let out = &mut out;
+                                ctx.integrator
+                                    .shade_hit(ctx, depth, ray, &s, path, paths, numbers, out);
+                            }
+                            Entry::Miss
+                        }
+                        None if ctx.integrator.ignores_surface_hit(depth, ctx.max_depth) => {
                             Entry::Miss
                         }
                         None => {
