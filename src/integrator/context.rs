@@ -13,6 +13,9 @@ use crate::scene::{Camera, Scene};
 pub struct RenderContext<'a> {
     /// The scene being rendered.
     pub scene: &'a Scene,
+    /// `scene.face_normals()`, made once per render: shading in lanes gathers one normal per
+    /// triangle where it would gather three corners.
+    pub face_normals: &'a [Vec3],
     /// The acceleration structure over `scene`'s primitives.
     pub accel: &'a Accel,
     /// The camera that generates the primary rays.

@@ -63,8 +63,9 @@ pub struct DiffuseLanes {
     radius: Lanes,
     /// Lanes whose hit is a sphere, as a bit mask.
     spheres: u32,
-    /// A triangle's corner positions and normals; a sphere's centre is `corners[0]`.
-    corners: [[Lanes; 3]; 3],
+    /// A triangle's geometric normal (`RenderContext::face_normals`), or a sphere's centre.
+    face_normal: [Lanes; 3],
+    /// A triangle's vertex normals.
     normals: [[Lanes; 3]; 3],
 }
 
@@ -144,13 +145,13 @@ impl DiffuseLanes {
     /// Reads what `Surface::at` reads for every lane's hit, in two passes of independent loads
     /// (first the triangles' vertex indices, then their positions and normals), so that the
     /// cache misses of different lanes overlap instead of waiting on each other.
-    fn load_surfaces(&mut self, scene: &Scene) {
+    fn load_surfaces(&mut self, scene: &Scene, face_normals: &[Vec3]) {
         // Gathers pay where one instruction makes a lane vector (AVX-512: -m 5 renders
         // 0.98-0.99x); below it the checked loop was slower than the loads below (1.04x).
         self.spheres = 0;
         if cfg!(target_feature = "avx512f")
             && self.prim.iter().all(|&p| !prim::is_sphere(p))
-            && self.gather_triangles(scene)
+            && self.gather_triangles(scene, face_normals)
         {
             return;
         }
@@ -159,18 +160,19 @@ impl DiffuseLanes {
             if prim::is_sphere(self.prim[l]) {
                 self.spheres |= 1 << l;
             } else {
-                *v = scene.triangles[prim::triangle_index(self.prim[l]) as usize];
+                let t = prim::triangle_index(self.prim[l]) as usize;
+                *v = scene.triangles[t];
+                put(&mut self.face_normal, l, face_normals[t]);
             }
         }
         for (l, v) in vertices.iter().enumerate() {
             if self.spheres & (1 << l) != 0 {
                 let s = &scene.spheres[prim::sphere_index(self.prim[l]) as usize];
-                put(&mut self.corners[0], l, s.center);
+                put(&mut self.face_normal, l, s.center);
                 self.radius[l] = s.radius;
                 continue;
             }
             for (k, &vertex) in v.iter().enumerate() {
-                put(&mut self.corners[k], l, scene.positions[vertex as usize]);
                 put(&mut self.normals[k], l, scene.normals[vertex as usize]);
             }
         }
@@ -179,29 +181,33 @@ impl DiffuseLanes {
     /// `load_surfaces` for lanes that all hit triangles, one coordinate of all 16 lanes at a
     /// time (`simd::gather16`: one AVX-512 gather each). `false` if an index is out of range,
     /// which leaves the checked loads of `load_surfaces` to report it.
-    fn gather_triangles(&mut self, scene: &Scene) -> bool {
+    fn gather_triangles(&mut self, scene: &Scene, face_normals: &[Vec3]) -> bool {
         let corners = scene.triangles.as_flattened();
-        let (positions, normals) =
-            (flat_coordinates(&scene.positions), flat_coordinates(&scene.normals));
-        if corners.len().max(positions.len()).max(normals.len()) > u32::MAX as usize {
+        let (faces, normals) = (flat_coordinates(face_normals), flat_coordinates(&scene.normals));
+        if corners.len().max(faces.len()).max(normals.len()) > u32::MAX as usize {
             return false;
         }
         let triangle = self.prim.map(prim::triangle_index);
-        if triangle.iter().any(|&t| t as usize >= scene.triangles.len()) {
+        let count = scene.triangles.len().min(face_normals.len());
+        if triangle.iter().any(|&t| t as usize >= count) {
             return false;
+        }
+        for axis in 0..3 {
+            let at = triangle.map(|t| 3 * t + axis as u32);
+            if !gather16(faces, &at, &mut self.face_normal[axis]) {
+                return false;
+            }
         }
         for k in 0..3 {
             let mut vertex = [0u32; LANES];
             if !gather16(corners, &triangle.map(|t| 3 * t + k as u32), &mut vertex)
-                || vertex.iter().any(|&v| v as usize >= scene.positions.len())
+                || vertex.iter().any(|&v| v as usize >= scene.normals.len())
             {
                 return false;
             }
             for axis in 0..3 {
                 let at = vertex.map(|v| 3 * v + axis as u32);
-                if !gather16(positions, &at, &mut self.corners[k][axis])
-                    || !gather16(normals, &at, &mut self.normals[k][axis])
-                {
+                if !gather16(normals, &at, &mut self.normals[k][axis]) {
                     return false;
                 }
             }
@@ -266,7 +272,7 @@ pub fn shade_diffuse(
     out: &mut DiffuseOutputs,
 ) {
     lanes.pad();
-    lanes.load_surfaces(ctx.scene);
+    lanes.load_surfaces(ctx.scene, ctx.face_normals);
     let v = vertex(lanes);
     // The chunk's numbers sit in one block of the batch (`[slot][coordinate][lane]`, the
     // chunk's queue entries in its lanes); lane l reads the block lane of its vertex, and in
@@ -325,17 +331,17 @@ pub fn shade_diffuse(
 #[inline(always)]
 fn surface(lanes: &DiffuseLanes, origin: V3, dir: V3, hit: &PushedValues) -> (V3, V3, V3) {
     let p = origin.add(dir.scale(hit.t));
-    let [a, b, c] = lanes.corners.each_ref().map(V3::load);
+    let face = V3::load(&lanes.face_normal);
     let [na, nb, nc] = lanes.normals.each_ref().map(V3::load);
     let (u, v) = (hit.u, hit.v);
-    let ng = normalize_or(b.sub(a).cross(c.sub(a)), V3::splat(Vec3::Y));
+    let ng = normalize_or(face, V3::splat(Vec3::Y));
     let w = V::splat(1.0) - u - v;
     let ns = normalize_or(na.scale(w).add(nb.scale(u)).add(nc.scale(v)), ng);
     if lanes.spheres == 0 {
         return (p, ng, ns);
     }
     // A sphere's normal.
-    let n = normalize_or(p.sub(a).div(V::load(&lanes.radius)), V3::splat(Vec3::Y));
+    let n = normalize_or(p.sub(face).div(V::load(&lanes.radius)), V3::splat(Vec3::Y));
     let sphere = V::from_bitmask(lanes.spheres);
     (p, V3::select(sphere, n, ng), V3::select(sphere, n, ns))
 }

@@ -89,6 +89,17 @@ impl Scene {
         [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
     }
 
+    /// Each triangle's geometric normal, not normalised: (b - a) x (c - a) of its corners, the
+    /// same operations as `Surface::at`, so the same bits.
+    pub fn face_normals(&self) -> Vec<Vec3> {
+        (0..self.triangles.len())
+            .map(|i| {
+                let [a, b, c] = self.triangle(i);
+                (b - a).cross(c - a)
+            })
+            .collect()
+    }
+
     /// Whether any material is emissive (emissive geometry seen by camera and BSDF rays).
     pub fn has_emissive_geometry(&self) -> bool {
         self.materials.iter().any(|m| matches!(m, Material::Emission { .. }))
