@@ -13,11 +13,12 @@
 
 use wide::f32x8;
 
-use super::packet::BOX_INFLATE;
+use super::packet::{TriangleFrame, BOX_INFLATE};
 use super::TraceStats;
 use crate::geometry::triangles::{TriangleBlock, TriangleSoa, LANES};
 use crate::geometry::watertight::{axes, intersect_simd, permute, Shear, V3};
 use crate::math::{Hit, Ray};
+use crate::simd::SimdF32;
 
 /// Every lane on: the lanes outside the leaf are masked off after the test instead.
 const ALL: f32x8 = f32x8::new([f32::from_bits(!0); LANES]);
@@ -39,6 +40,19 @@ impl LeafRay {
         let s = Shear::of(permute(ray.dir, axes), 1.0);
         let o = permute(ray.origin, axes);
         LeafRay { axes, origin: [o.x, o.y, o.z], shear: [s.sx, s.sy, s.sz] }
+    }
+
+    /// `LeafRay::new` of lane `i` of the packet whose terms `f` holds: the frame computes the
+    /// same axis order, permuted origin and shear lane by lane, so the bits are the same, and a
+    /// lane handed to single-ray code skips its own division.
+    #[inline(always)]
+    pub(super) fn of_lane<V: SimdF32>(f: &TriangleFrame<V>, i: usize) -> LeafRay {
+        let (o, s) = (&f.origin_in_axes, &f.shear);
+        LeafRay {
+            axes: f.axes.lane(i),
+            origin: [o.x.lane(i), o.y.lane(i), o.z.lane(i)],
+            shear: [s.sx.lane(i), s.sy.lane(i), s.sz.lane(i)],
+        }
     }
 
     /// Rows x, y, z of a block's vertex in the ray's axis order.

@@ -20,7 +20,7 @@ use super::build::MAX_DEPTH;
 use super::leaf::{self, LeafRay};
 use super::packet::{PacketHits, RayPacket, TriangleFrame, BOX_INFLATE, MAX_W};
 use super::packet_interval::PacketInterval;
-use super::traverse_single::{self, Entry as SingleEntry};
+use super::traverse_single::{self, Entry as SingleEntry, WideRay};
 use super::wide_node::{leaf_range, WideNode, ARITY, LEAF_BIT};
 use super::TraceStats;
 use crate::geometry::triangles::{TriangleSoa, LANES};
@@ -270,24 +270,17 @@ pub fn intersect<V: SimdF32>(
         let lanes = entered & near.simd_le(p.t_max * V::splat(BOX_INFLATE)).bitmask();
         if lanes != 0 {
             if lanes.count_ones() <= fallback {
-                finish_single(nodes, tris, child, &{ near }, lanes, p, &mut hits, stats);
+                let f = frame.get_or_insert_with(|| TriangleFrame::of(p));
+                finish_single(nodes, tris, child, &{ near }, lanes, f, p, &mut hits, stats);
             } else if child & LEAF_BIT != 0 {
                 let (first, count) = leaf_range(child);
+                let f = frame.get_or_insert_with(|| TriangleFrame::of(p));
                 if leaf_by_lane(lanes, count) {
-                    lane_by_lane(lanes, near, p, &mut hits, |ray, best, near| {
-                        leaf::intersect_leaf(
-                            tris,
-                            first,
-                            count,
-                            near,
-                            &LeafRay::new(ray),
-                            ray,
-                            best,
-                            stats,
-                        )
+                    lane_by_lane(lanes, near, p, &mut hits, |i, _, ray, best, near| {
+                        let leaf_ray = LeafRay::of_lane(f, i);
+                        leaf::intersect_leaf(tris, first, count, near, &leaf_ray, ray, best, stats)
                     });
                 } else {
-                    let f = frame.get_or_insert_with(|| TriangleFrame::of(p));
                     intersect_leaf(tris, first, count, near, lanes, f, p, &mut hits, stats);
                 }
             } else {
@@ -313,15 +306,15 @@ pub fn intersect<V: SimdF32>(
     }
 }
 
-/// Runs `trace(ray, best, entry distance)` for each lane of `lanes` as a single ray (with the
-/// lane's current best hit), and takes the hits back into the packet.
+/// Runs `trace(lane, packet, ray, best, entry distance)` for each lane of `lanes` as a single ray
+/// (with the lane's current best hit), and takes the hits back into the packet.
 #[inline(always)]
 fn lane_by_lane<V: SimdF32>(
     lanes: u32,
     near: V,
     p: &mut RayPacket<V>,
     hits: &mut PacketHits<V>,
-    mut trace: impl FnMut(&mut Ray, &mut Option<Hit>, f32),
+    mut trace: impl FnMut(usize, &RayPacket<V>, &mut Ray, &mut Option<Hit>, f32),
 ) {
     let mut bits = lanes;
     let mut t_max = [0.0f32; MAX_W];
@@ -335,7 +328,7 @@ fn lane_by_lane<V: SimdF32>(
         bits &= bits - 1;
         let mut ray = p.ray(i);
         let mut best = hits.get(i);
-        trace(&mut ray, &mut best, entry[i]);
+        trace(i, p, &mut ray, &mut best, entry[i]);
         if let Some(h) = best {
             t_max[i] = h.t;
             u[i] = h.u;
@@ -350,7 +343,8 @@ fn lane_by_lane<V: SimdF32>(
     hits.v = V::load(&v);
 }
 
-/// Lanes `lanes` finish the subtree `child`, entered at `near`, one ray at a time.
+/// Lanes `lanes` finish the subtree `child`, entered at `near`, one ray at a time, each
+/// prepared from the packet's terms (`WideRay::of_lane`; `f`: the packet's triangle terms).
 #[inline(never)]
 #[allow(clippy::too_many_arguments)] // the subtree (child, entry distances), the lanes, the packet's state
 fn finish_single<V: SimdF32>(
@@ -359,13 +353,15 @@ fn finish_single<V: SimdF32>(
     child: u32,
     near: &V,
     lanes: u32,
+    f: &TriangleFrame<V>,
     p: &mut RayPacket<V>,
     hits: &mut PacketHits<V>,
     stats: &mut TraceStats,
 ) {
-    lane_by_lane(lanes, *near, p, hits, |ray, best, t| {
+    lane_by_lane(lanes, *near, p, hits, |i, p, ray, best, t| {
+        let wr = WideRay::of_lane(p, i, LeafRay::of_lane(f, i));
         let start = SingleEntry { child, t };
-        traverse_single::intersect_subtree(nodes, tris, start, ray, best, stats);
+        traverse_single::intersect_subtree(nodes, tris, &wr, start, ray, best, stats);
     });
 }
 
@@ -476,18 +472,20 @@ pub fn occluded<V: SimdF32>(
         if lanes != 0 {
             let child = cur.0;
             if lanes.count_ones() <= fallback {
-                let start = SingleEntry { child, t: 0.0 };
-                blocked |= blocked_lane_by_lane(lanes, p, |ray| {
-                    traverse_single::occluded_subtree(nodes, tris, start, ray, stats)
+                let f = frame.get_or_insert_with(|| TriangleFrame::of(p));
+                blocked |= blocked_lane_by_lane(lanes, p, |i, ray| {
+                    let wr = WideRay::of_lane(p, i, LeafRay::of_lane(f, i));
+                    traverse_single::occluded_subtree(nodes, tris, &wr, child, ray, stats)
                 });
             } else if child & LEAF_BIT != 0 {
                 let (first, count) = leaf_range(child);
+                let f = frame.get_or_insert_with(|| TriangleFrame::of(p));
                 if leaf_by_lane(lanes, count) {
-                    blocked |= blocked_lane_by_lane(lanes, p, |ray| {
-                        leaf::occluded_leaf(tris, first, count, &LeafRay::new(ray), ray, stats)
+                    blocked |= blocked_lane_by_lane(lanes, p, |i, ray| {
+                        let leaf_ray = LeafRay::of_lane(f, i);
+                        leaf::occluded_leaf(tris, first, count, &leaf_ray, ray, stats)
                     });
                 } else {
-                    let f = frame.get_or_insert_with(|| TriangleFrame::of(p));
                     blocked |= occluded_leaf(tris, first, count, lanes, f, p, stats);
                 }
             } else {
@@ -516,18 +514,18 @@ pub fn occluded<V: SimdF32>(
     }
 }
 
-/// The lanes of `lanes` whose ray, traced alone, `blocks` says is blocked.
+/// The lanes of `lanes` whose ray, traced alone, `blocks(lane, ray)` says is blocked.
 #[inline(always)]
 fn blocked_lane_by_lane<V: SimdF32>(
     lanes: u32,
     p: &RayPacket<V>,
-    mut blocks: impl FnMut(&Ray) -> bool,
+    mut blocks: impl FnMut(usize, &Ray) -> bool,
 ) -> u32 {
     let (mut bits, mut blocked) = (lanes, 0);
     while bits != 0 {
         let i = bits.trailing_zeros() as usize;
         bits &= bits - 1;
-        if blocks(&p.ray(i)) {
+        if blocks(i, &p.ray(i)) {
             blocked |= 1 << i;
         }
     }

@@ -14,7 +14,7 @@ use std::mem::MaybeUninit;
 
 use super::build::MAX_DEPTH;
 use super::leaf::{intersect_leaf, occluded_leaf, LeafRay};
-use super::packet::{safe_recip, slab_terms, BOX_INFLATE};
+use super::packet::{safe_recip, slab_terms, RayPacket, BOX_INFLATE};
 use super::wide_node::{leaf_range, ChildLanes, WideNode, ARITY, LEAF_BIT};
 use super::TraceStats;
 use crate::geometry::triangles::{TriangleSoa, LANES};
@@ -59,6 +59,22 @@ impl WideRay {
             neg: inv.map(f32::is_sign_negative),
             t_min: ChildLanes::splat(ray.t_min),
             leaf: LeafRay::new(ray),
+        }
+    }
+
+    /// `WideRay::new` of lane `i` of `p`, from the packet's own terms (`safe_recip` and
+    /// `slab_terms` lane by lane, so the same bits) and the lane's `leaf` terms.
+    #[inline(always)]
+    pub(super) fn of_lane<V: SimdF32>(p: &RayPacket<V>, i: usize, leaf: LeafRay) -> WideRay {
+        let lane = |v: &V3<V>| [v.x.lane(i), v.y.lane(i), v.z.lane(i)];
+        let inv = lane(&p.inv_dir);
+        WideRay {
+            inv_dir: inv.map(ChildLanes::splat),
+            neg_o_inv: lane(&p.neg_o_inv).map(ChildLanes::splat),
+            slack: ChildLanes::splat(p.slack.lane(i)),
+            neg: inv.map(f32::is_sign_negative),
+            t_min: ChildLanes::splat(p.t_min.lane(i)),
+            leaf,
         }
     }
 
@@ -230,22 +246,24 @@ pub fn intersect(
 ) -> Option<Hit> {
     let mut best = None;
     if !nodes.is_empty() {
-        intersect_subtree(nodes, tris, Entry::root(ray), ray, &mut best, stats);
+        let wr = WideRay::new(ray);
+        intersect_subtree(nodes, tris, &wr, Entry::root(ray), ray, &mut best, stats);
     }
     best
 }
 
 /// Closest hit within the subtree `start` (whose box the caller has tested; packets hand
-/// their last few lanes over here), improving on `best`, whose distance is `ray.t_max`.
-pub(crate) fn intersect_subtree(
+/// their last few lanes over here), improving on `best`, whose distance is `ray.t_max`;
+/// `wr` is `ray` prepared (`WideRay::new`, or `WideRay::of_lane` for a packet's lane).
+pub(super) fn intersect_subtree(
     nodes: &[WideNode],
     tris: &TriangleSoa,
+    wr: &WideRay,
     start: Entry,
     ray: &mut Ray,
     best: &mut Option<Hit>,
     stats: &mut TraceStats,
 ) {
-    let wr = WideRay::new(ray);
     let mut stack = Stack::<Entry>::new();
     // Counted in a register and stored once: `stats` is behind a reference the leaf test also
     // writes, so a per-node `+=` would be a load and store per node.
@@ -255,7 +273,7 @@ pub(crate) fn intersect_subtree(
         while cur.child & LEAF_BIT == 0 {
             let n = &nodes[cur.child as usize];
             node_tests += n.children() as u64;
-            match descend(nodes, &wr, n, ray.t_max, &mut stack) {
+            match descend(nodes, wr, n, ray.t_max, &mut stack) {
                 Some(next) => cur = next,
                 None => break,
             }
@@ -311,31 +329,32 @@ fn descend_any(
 
 /// Whether any triangle blocks the ray within [t_min, t_max]; stops at the first one found.
 pub fn occluded(nodes: &[WideNode], tris: &TriangleSoa, ray: &Ray, stats: &mut TraceStats) -> bool {
-    !nodes.is_empty() && occluded_subtree(nodes, tris, Entry::root(ray), ray, stats)
+    !nodes.is_empty() && occluded_subtree(nodes, tris, &WideRay::new(ray), 0, ray, stats)
 }
 
-/// Whether any triangle of the subtree `start` (box already tested) blocks the ray.
+/// Whether any triangle of the subtree `start` (box already tested) blocks the ray, prepared
+/// as `wr` (see `intersect_subtree`).
 ///
 /// The farthest entered child is visited first. Occlusion rays start on a surface, and the
 /// boxes around their origin (entered at t_min, so nearest) hold the surface they leave, which
 /// rarely blocks them; what blocks them lies farther along.
 /// Measured: PERF.md, "Measurements moved from doc comments".
-pub(crate) fn occluded_subtree(
+pub(super) fn occluded_subtree(
     nodes: &[WideNode],
     tris: &TriangleSoa,
-    start: Entry,
+    wr: &WideRay,
+    start: u32,
     ray: &Ray,
     stats: &mut TraceStats,
 ) -> bool {
-    let wr = WideRay::new(ray);
     let mut stack = Stack::<u32>::new();
     let mut node_tests = 0u64;
-    let mut child = start.child;
+    let mut child = start;
     loop {
         while child & LEAF_BIT == 0 {
             let n = &nodes[child as usize];
             node_tests += n.children() as u64;
-            match descend_any(nodes, &wr, n, ray.t_max, &mut stack) {
+            match descend_any(nodes, wr, n, ray.t_max, &mut stack) {
                 Some(next) => child = next,
                 None => break,
             }

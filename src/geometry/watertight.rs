@@ -248,6 +248,15 @@ impl<V: SimdF32> PacketAxes<V> {
         V3 { x: pick(v.y, v.z, v.x), y: pick(v.z, v.x, v.y), z: pick(v.x, v.y, v.z) }
     }
 
+    /// Lane `i`'s [kx, ky, kz]: what [`axes`] gives for that lane's direction (the same
+    /// comparisons, so the same choice).
+    #[inline(always)]
+    pub fn lane(&self, i: usize) -> [usize; 3] {
+        let bit = |v: V| (v.bitmask() >> i) & 1;
+        let kz = 2 - 2 * bit(self.is_x) as usize - bit(self.is_y) as usize;
+        [(kz + 1) % 3, (kz + 2) % 3, kz]
+    }
+
     /// A point broadcast to every lane, in each lane's order.
     #[inline(always)]
     pub fn permute_splat(&self, p: Vec3) -> V3<V> {
