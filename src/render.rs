@@ -174,7 +174,7 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
     };
     let (samples, window) = check_range_and_crop(config)?;
     let lights = config.integrator.light_set(scene);
-    let face_normals = scene.face_normals();
+    let face_normals = scene.face_normals()?;
     let ctx = RenderContext {
         scene,
         face_normals: &face_normals,

@@ -171,3 +171,64 @@ pub(super) fn occluded_leaf(
         mask.to_bitmask() & lanes != 0
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::packet::RayPacket;
+    use crate::accel::traverse_single::WideRay;
+    use crate::accel::wide_node::WideNode;
+    use crate::math::Vec3;
+    use crate::sampler::Pcg32;
+    use wide::{f32x4, f32x8};
+
+    /// A lane's terms read out of its packet (`LeafRay::of_lane`, `WideRay::of_lane`) are the
+    /// terms its ray computes alone, bit for bit: the same triangle-test terms, and the same
+    /// entry distances and masks from every box test, zero and tiny direction components too.
+    fn lane_terms_equal<V: SimdF32>() {
+        let mut rng = Pcg32::new(5, 9);
+        let mut r = || rng.next_f32() * 2.0 - 1.0;
+        let mut n = WideNode::EMPTY_NODE;
+        for i in 0..8 {
+            let (c, h) = (Vec3::new(r(), r(), r()), Vec3::new(r(), r(), r()).abs() * 0.5);
+            n.set_child(i, (c - h).into(), (c + h).into(), i as u32 + 1);
+        }
+        let mut entered = 0;
+        for case in 0..500 {
+            let rays: Vec<Ray> = (0..V::W)
+                .map(|k| {
+                    let mut d = Vec3::new(r(), r(), r());
+                    match (case + k) % 5 {
+                        0 => d.x = 0.0,
+                        1 => d.y = -0.0,
+                        2 => d.z = 1e-20,
+                        _ => {}
+                    }
+                    let o = Vec3::new(r(), r(), r()) * 3.0;
+                    Ray::segment(o, d, 0.01 * r().abs(), 2.0 + r())
+                })
+                .collect();
+            let p = RayPacket::<V>::from_rays(&rays);
+            let f = TriangleFrame::of(&p);
+            for (i, ray) in rays.iter().enumerate() {
+                let leaf = LeafRay::of_lane(&f, i);
+                assert_eq!(format!("{leaf:?}"), format!("{:?}", LeafRay::new(ray)), "case {case}");
+                let (lane, alone) = (WideRay::of_lane(&p, i, leaf), WideRay::new(ray));
+                let ((t_lane, m_lane), (t_alone, m_alone)) =
+                    (lane.slab(&n, ray.t_max), alone.slab(&n, ray.t_max));
+                assert_eq!(m_lane, m_alone, "case {case} lane {i}");
+                let bits = |t: [f32; 8]| t.map(f32::to_bits);
+                assert_eq!(bits(t_lane.to_array()), bits(t_alone.to_array()), "case {case}");
+                entered += m_alone.count_ones();
+            }
+        }
+        assert!(entered > 100 * V::W as u32, "{entered}");
+    }
+
+    #[test]
+    fn packet_lane_terms_equal_the_single_ray_terms() {
+        lane_terms_equal::<f32x4>();
+        lane_terms_equal::<f32x8>();
+        lane_terms_equal::<crate::simd::F32x16>();
+    }
+}

@@ -42,7 +42,7 @@ const _: () = assert!(LANES == DRAW_BLOCK);
 /// A lane's ray and its other per-vertex values are pushed as records of 8 floats and turned
 /// into lanes by 8 x 8 transposes (`vertex`): a vertex's values stored one float per lane
 /// array cost 27 scalar stores per vertex, and the vector loads after them waited on failed
-/// store-to-load forwards. The surfaces' corners and normals are gathered in AVX-512 builds
+/// store-to-load forwards. The surfaces' face and vertex normals are gathered in AVX-512 builds
 /// (`gather_triangles`) and loaded lane by lane below it.
 #[derive(Default)]
 pub struct DiffuseLanes {
@@ -142,9 +142,10 @@ impl DiffuseLanes {
         }
     }
 
-    /// Reads what `Surface::at` reads for every lane's hit, in two passes of independent loads
-    /// (first the triangles' vertex indices, then their positions and normals), so that the
-    /// cache misses of different lanes overlap instead of waiting on each other.
+    /// Reads what reconstructing every lane's surface needs (a triangle's face normal and
+    /// vertex normals, a sphere's centre), in two passes of independent loads (first the face
+    /// normals and vertex indices, then the vertex normals), so that the cache misses of
+    /// different lanes overlap instead of waiting on each other.
     fn load_surfaces(&mut self, scene: &Scene, face_normals: &[Vec3]) {
         // Gathers pay where one instruction makes a lane vector (AVX-512: -m 5 renders
         // 0.98-0.99x); below it the checked loop was slower than the loads below (1.04x).
@@ -182,9 +183,9 @@ impl DiffuseLanes {
     /// time (`simd::gather16`: one AVX-512 gather each). `false` if an index is out of range,
     /// which leaves the checked loads of `load_surfaces` to report it.
     fn gather_triangles(&mut self, scene: &Scene, face_normals: &[Vec3]) -> bool {
-        let corners = scene.triangles.as_flattened();
+        let indices = scene.triangles.as_flattened();
         let (faces, normals) = (flat_coordinates(face_normals), flat_coordinates(&scene.normals));
-        if corners.len().max(faces.len()).max(normals.len()) > u32::MAX as usize {
+        if indices.len().max(faces.len()).max(normals.len()) > u32::MAX as usize {
             return false;
         }
         let triangle = self.prim.map(prim::triangle_index);
@@ -200,7 +201,7 @@ impl DiffuseLanes {
         }
         for k in 0..3 {
             let mut vertex = [0u32; LANES];
-            if !gather16(corners, &triangle.map(|t| 3 * t + k as u32), &mut vertex)
+            if !gather16(indices, &triangle.map(|t| 3 * t + k as u32), &mut vertex)
                 || vertex.iter().any(|&v| v as usize >= scene.normals.len())
             {
                 return false;

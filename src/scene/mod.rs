@@ -90,14 +90,16 @@ impl Scene {
     }
 
     /// Each triangle's geometric normal, not normalised: (b - a) x (c - a) of its corners, the
-    /// same operations as `Surface::at`, so the same bits.
-    pub fn face_normals(&self) -> Vec<Vec3> {
-        (0..self.triangles.len())
-            .map(|i| {
-                let [a, b, c] = self.triangle(i);
-                (b - a).cross(c - a)
-            })
-            .collect()
+    /// same operations as `Surface::at`, so the same bits. Memory that cannot be had is an
+    /// error.
+    pub fn face_normals(&self) -> crate::Result<Vec<Vec3>> {
+        let what = "the triangles' face normals";
+        let mut normals = crate::error::try_filled_vec(self.triangles.len(), Vec3::ZERO, what)?;
+        for (i, n) in normals.iter_mut().enumerate() {
+            let [a, b, c] = self.triangle(i);
+            *n = (b - a).cross(c - a);
+        }
+        Ok(normals)
     }
 
     /// Whether any material is emissive (emissive geometry seen by camera and BSDF rays).
