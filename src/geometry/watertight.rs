@@ -76,14 +76,25 @@ pub fn dominant_axis(d: Vec3) -> usize {
     let x_beats_y = a.x > a.y;
     let is_x = x_beats_y & (a.x > a.z);
     let is_y = !x_beats_y & (a.y > a.z);
+    axis_of(is_x, is_y)
+}
+
+/// The dominant axis from the two comparisons' outcomes: x, else y, else z.
+#[inline(always)]
+fn axis_of(is_x: bool, is_y: bool) -> usize {
     2 - 2 * is_x as usize - is_y as usize
+}
+
+/// [kx, ky, kz] for the dominant axis `kz`: it last, the other two after it cyclically.
+#[inline(always)]
+fn order_ending_in(kz: usize) -> [usize; 3] {
+    [(kz + 1) % 3, (kz + 2) % 3, kz]
 }
 
 /// [kx, ky, kz]: the dominant axis last, the other two after it cyclically.
 #[inline(always)]
 pub fn axes(d: Vec3) -> [usize; 3] {
-    let kz = dominant_axis(d);
-    [(kz + 1) % 3, (kz + 2) % 3, kz]
+    order_ending_in(dominant_axis(d))
 }
 
 /// `v` with its components in the order `k` ([kx, ky, kz]).
@@ -252,9 +263,8 @@ impl<V: SimdF32> PacketAxes<V> {
     /// comparisons, so the same choice).
     #[inline(always)]
     pub fn lane(&self, i: usize) -> [usize; 3] {
-        let bit = |v: V| (v.bitmask() >> i) & 1;
-        let kz = 2 - 2 * bit(self.is_x) as usize - bit(self.is_y) as usize;
-        [(kz + 1) % 3, (kz + 2) % 3, kz]
+        let bit = |v: V| (v.bitmask() >> i) & 1 != 0;
+        order_ending_in(axis_of(bit(self.is_x), bit(self.is_y)))
     }
 
     /// A point broadcast to every lane, in each lane's order.
