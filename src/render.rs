@@ -174,10 +174,10 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
     };
     let (samples, window) = check_range_and_crop(config)?;
     let lights = config.integrator.light_set(scene);
-    let face_normals = scene.face_normals()?;
+    let triangle_normals = scene.triangle_normals()?;
     let ctx = RenderContext {
         scene,
-        face_normals: &face_normals,
+        triangle_normals: &triangle_normals,
         accel,
         camera: &camera,
         integrator: &config.integrator,

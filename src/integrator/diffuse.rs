@@ -19,9 +19,9 @@ use super::lights::{Rectangle, TriangleEmitter, CORNER_WEIGHT_FLOOR};
 use super::path::{DirectLighting, DrawLayout, RR_START_DEPTH};
 use super::RenderContext;
 use crate::geometry::prim;
-use crate::math::{flat_coordinates, Hit, Ray, Vec3};
+use crate::math::{Hit, Ray, Vec3};
 use crate::sampler::{DrawBatch, DRAW_BLOCK};
-use crate::scene::{Light, Scene};
+use crate::scene::{Light, Scene, TriangleNormals};
 use crate::simd::{gather16, SimdF32};
 
 use super::lane_math::{
@@ -63,7 +63,7 @@ pub struct DiffuseLanes {
     radius: Lanes,
     /// Lanes whose hit is a sphere, as a bit mask.
     spheres: u32,
-    /// A triangle's geometric normal (`RenderContext::face_normals`), or a sphere's centre.
+    /// A triangle's geometric normal (`RenderContext::triangle_normals`), or a sphere's centre.
     face_normal: [Lanes; 3],
     /// A triangle's vertex normals.
     normals: [[Lanes; 3]; 3],
@@ -143,38 +143,29 @@ impl DiffuseLanes {
     }
 
     /// Reads what reconstructing every lane's surface needs (a triangle's face normal and
-    /// vertex normals, a sphere's centre), in two passes of independent loads (first the face
-    /// normals and vertex indices, then the vertex normals), so that the cache misses of
-    /// different lanes overlap instead of waiting on each other.
-    fn load_surfaces(&mut self, scene: &Scene, face_normals: &[Vec3]) {
+    /// vertex normals from its `TriangleNormals` record, a sphere's centre and radius).
+    fn load_surfaces(&mut self, scene: &Scene, normals: &[TriangleNormals]) {
         // Gathers pay where one instruction makes a lane vector (AVX-512: -m 5 renders
         // 0.98-0.99x); below it the checked loop was slower than the loads below (1.04x).
         self.spheres = 0;
         if cfg!(target_feature = "avx512f")
             && self.prim.iter().all(|&p| !prim::is_sphere(p))
-            && self.gather_triangles(scene, face_normals)
+            && self.gather_triangles(normals)
         {
             return;
         }
-        let mut vertices = [[0u32; 3]; LANES];
-        for (l, v) in vertices.iter_mut().enumerate() {
+        for l in 0..LANES {
             if prim::is_sphere(self.prim[l]) {
                 self.spheres |= 1 << l;
-            } else {
-                let t = prim::triangle_index(self.prim[l]) as usize;
-                *v = scene.triangles[t];
-                put(&mut self.face_normal, l, face_normals[t]);
-            }
-        }
-        for (l, v) in vertices.iter().enumerate() {
-            if self.spheres & (1 << l) != 0 {
                 let s = &scene.spheres[prim::sphere_index(self.prim[l]) as usize];
                 put(&mut self.face_normal, l, s.center);
                 self.radius[l] = s.radius;
-                continue;
-            }
-            for (k, &vertex) in v.iter().enumerate() {
-                put(&mut self.normals[k], l, scene.normals[vertex as usize]);
+            } else {
+                let n = &normals[prim::triangle_index(self.prim[l]) as usize];
+                put(&mut self.face_normal, l, n.face);
+                for (k, &vertex) in n.vertex.iter().enumerate() {
+                    put(&mut self.normals[k], l, vertex);
+                }
             }
         }
     }
@@ -182,33 +173,26 @@ impl DiffuseLanes {
     /// `load_surfaces` for lanes that all hit triangles, one coordinate of all 16 lanes at a
     /// time (`simd::gather16`: one AVX-512 gather each). `false` if an index is out of range,
     /// which leaves the checked loads of `load_surfaces` to report it.
-    fn gather_triangles(&mut self, scene: &Scene, face_normals: &[Vec3]) -> bool {
-        let indices = scene.triangles.as_flattened();
-        let (faces, normals) = (flat_coordinates(face_normals), flat_coordinates(&scene.normals));
-        if indices.len().max(faces.len()).max(normals.len()) > u32::MAX as usize {
+    fn gather_triangles(&mut self, normals: &[TriangleNormals]) -> bool {
+        const F: usize = TriangleNormals::FLOATS;
+        let flat = TriangleNormals::flat(normals);
+        if flat.len() > u32::MAX as usize {
             return false;
         }
         let triangle = self.prim.map(prim::triangle_index);
-        let count = scene.triangles.len().min(face_normals.len());
-        if triangle.iter().any(|&t| t as usize >= count) {
+        if triangle.iter().any(|&t| t as usize >= normals.len()) {
             return false;
         }
+        let record = triangle.map(|t| F as u32 * t);
         for axis in 0..3 {
-            let at = triangle.map(|t| 3 * t + axis as u32);
-            if !gather16(faces, &at, &mut self.face_normal[axis]) {
+            if !gather16(flat, &record.map(|r| r + axis as u32), &mut self.face_normal[axis]) {
                 return false;
             }
         }
         for k in 0..3 {
-            let mut vertex = [0u32; LANES];
-            if !gather16(indices, &triangle.map(|t| 3 * t + k as u32), &mut vertex)
-                || vertex.iter().any(|&v| v as usize >= scene.normals.len())
-            {
-                return false;
-            }
             for axis in 0..3 {
-                let at = vertex.map(|v| 3 * v + axis as u32);
-                if !gather16(normals, &at, &mut self.normals[k][axis]) {
+                let at = record.map(|r| r + (3 + 3 * k + axis) as u32);
+                if !gather16(flat, &at, &mut self.normals[k][axis]) {
                     return false;
                 }
             }
@@ -273,7 +257,7 @@ pub fn shade_diffuse(
     out: &mut DiffuseOutputs,
 ) {
     lanes.pad();
-    lanes.load_surfaces(ctx.scene, ctx.face_normals);
+    lanes.load_surfaces(ctx.scene, ctx.triangle_normals);
     let v = vertex(lanes);
     // The chunk's numbers sit in one block of the batch (`[slot][coordinate][lane]`, the
     // chunk's queue entries in its lanes); lane l reads the block lane of its vertex, and in
