@@ -19,9 +19,8 @@ use crate::accel::wide_node::{leaf_ref, WideNode, ARITY, MAX_LEAF};
 /// Cost of visiting a wide node: one 8-wide box test of a single ray, whatever its slots hold.
 const NODE_COST: f32 = 1.0;
 /// Cost of each used slot of a visited wide node: packets test every candidate child with
-/// all their lanes, and entered children are ordered. Measured (PERF.md, "Wide nodes by
-/// least cost"): at 0 nodes come out fullest and CBbunny's box tests per ray rise 2-3%; at
-/// 0.1 they fall 3-11% and every ray set runs as fast or faster than with the greedy collapse.
+/// all their lanes, and entered children are ordered. Chosen by measurement against 0, 0.05,
+/// 0.2 and 0.4 (PERF.md, "Wide nodes by least cost").
 const SLOT_COST: f32 = 0.1;
 
 /// The wide tree of `nodes` (depth-first, root first; the first interior child of a node
