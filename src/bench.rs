@@ -226,7 +226,8 @@ pub enum Traversal {
     Packet4,
     /// 8 rays per packet (`wide::f32x8`).
     Packet8,
-    /// 16 rays per packet as two 8-wide halves (`simd::F32x16`).
+    /// 16 rays per packet (`simd::F32x16`: one 512-bit register in AVX-512 builds, two 8-wide
+    /// halves below it).
     Packet16,
 }
 

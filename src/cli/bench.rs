@@ -32,8 +32,8 @@ pub struct BenchArgs {
     /// Also write PREFIX.{primary,diffuse,shadow}.rays
     #[arg(long, value_name = "PREFIX")]
     rays_out: Option<PathBuf>,
-    /// single|packet4|packet8|packet16, repeatable (default: all four; packet16 is 16 rays as
-    /// two 8-wide halves)
+    /// single|packet4|packet8|packet16, repeatable (default: all four; packet16 is 16 rays in
+    /// one 512-bit register where the CPU has AVX-512, two 8-wide halves below it)
     #[arg(long = "traversal", value_name = "KIND",
           value_parser = |s: &str| Traversal::parse(s).map_err(|e| e.context("bench: --traversal")))]
     traversals: Vec<Traversal>,
