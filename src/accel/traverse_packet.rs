@@ -18,7 +18,7 @@
 
 use super::build::MAX_DEPTH;
 use super::leaf::{self, LeafRay};
-use super::packet::{PacketHits, RayPacket, TriangleFrame, BOX_INFLATE, MAX_W};
+use super::packet::{PacketHits, RayPacket, TriangleFrame, BOX_INFLATE};
 use super::packet_interval::PacketInterval;
 use super::traverse_single::{self, Entry as SingleEntry, WideRay};
 use super::wide_node::{leaf_range, WideNode, ARITY, LEAF_BIT};
@@ -307,7 +307,10 @@ pub fn intersect<V: SimdF32>(
 }
 
 /// Runs `trace(lane, packet, ray, best, entry distance)` for each lane of `lanes` as a single ray
-/// (with the lane's current best hit), and takes the hits back into the packet.
+/// (with the lane's current best hit), and takes the hits back into the packet. A lane's hit
+/// is blended into the packet's vectors: written into arrays of the vectors and loaded back,
+/// the vector loads waited on the scalar stores (a failed store-to-load forward per vector,
+/// PERF.md "What changed, each measured", twelfth round).
 #[inline(always)]
 fn lane_by_lane<V: SimdF32>(
     lanes: u32,
@@ -317,30 +320,22 @@ fn lane_by_lane<V: SimdF32>(
     mut trace: impl FnMut(usize, &RayPacket<V>, &mut Ray, &mut Option<Hit>, f32),
 ) {
     let mut bits = lanes;
-    let mut t_max = [0.0f32; MAX_W];
-    p.t_max.store(&mut t_max);
-    let (mut u, mut v, mut entry) = (t_max, t_max, t_max);
-    hits.u.store(&mut u);
-    hits.v.store(&mut v);
-    near.store(&mut entry);
     while bits != 0 {
         let i = bits.trailing_zeros() as usize;
         bits &= bits - 1;
         let mut ray = p.ray(i);
         let mut best = hits.get(i);
-        trace(i, p, &mut ray, &mut best, entry[i]);
+        trace(i, p, &mut ray, &mut best, near.lane(i));
         if let Some(h) = best {
-            t_max[i] = h.t;
-            u[i] = h.u;
-            v[i] = h.v;
+            let lane = V::from_bitmask(1 << i);
+            p.t_max = V::select(lane, V::splat(h.t), p.t_max);
+            hits.u = V::select(lane, V::splat(h.u), hits.u);
+            hits.v = V::select(lane, V::splat(h.v), hits.v);
             hits.prim[i] = h.prim;
             hits.hit_bits |= 1 << i;
         }
     }
-    p.t_max = V::load(&t_max);
     hits.t = p.t_max;
-    hits.u = V::load(&u);
-    hits.v = V::load(&v);
 }
 
 /// Lanes `lanes` finish the subtree `child`, entered at `near`, one ray at a time, each
