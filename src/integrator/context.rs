@@ -7,7 +7,7 @@ use crate::accel::Accel;
 use crate::geometry::prim;
 use crate::math::{Hit, Ray, Vec3};
 use crate::sampler::SamplerKind;
-use crate::scene::{Camera, Scene, TriangleNormals};
+use crate::scene::{Camera, Scene};
 
 /// What every stage reads: immutable for the whole render.
 pub struct RenderContext<'a> {
@@ -16,7 +16,7 @@ pub struct RenderContext<'a> {
     /// `scene.triangle_normals()`, made once per render: shading in lanes gathers one face
     /// normal per triangle where it would gather three corners, and the vertex normals without
     /// going through the vertex indices.
-    pub triangle_normals: &'a [TriangleNormals],
+    pub triangle_normals: &'a [Vec3],
     /// The acceleration structure over `scene`'s primitives.
     pub accel: &'a Accel,
     /// The camera that generates the primary rays.

@@ -19,9 +19,9 @@ use super::lights::{Rectangle, TriangleEmitter, CORNER_WEIGHT_FLOOR};
 use super::path::{DirectLighting, DrawLayout, RR_START_DEPTH};
 use super::RenderContext;
 use crate::geometry::prim;
-use crate::math::{Hit, Ray, Vec3};
+use crate::math::{flat_coordinates, Hit, Ray, Vec3};
 use crate::sampler::{DrawBatch, DRAW_BLOCK};
-use crate::scene::{Light, Scene, TriangleNormals};
+use crate::scene::{Light, Scene, NORMALS_PER_TRIANGLE};
 use crate::simd::{gather16, SimdF32};
 
 use super::lane_math::{
@@ -143,8 +143,8 @@ impl DiffuseLanes {
     }
 
     /// Reads what reconstructing every lane's surface needs (a triangle's face normal and
-    /// vertex normals from its `TriangleNormals` record, a sphere's centre and radius).
-    fn load_surfaces(&mut self, scene: &Scene, normals: &[TriangleNormals]) {
+    /// vertex normals from `RenderContext::triangle_normals`, a sphere's centre and radius).
+    fn load_surfaces(&mut self, scene: &Scene, normals: &[Vec3]) {
         // Gathers pay where one instruction makes a lane vector (AVX-512: -m 5 renders
         // 0.98-0.99x); below it the checked loop was slower than the loads below (1.04x).
         self.spheres = 0;
@@ -161,9 +161,11 @@ impl DiffuseLanes {
                 put(&mut self.face_normal, l, s.center);
                 self.radius[l] = s.radius;
             } else {
-                let n = &normals[prim::triangle_index(self.prim[l]) as usize];
-                put(&mut self.face_normal, l, n.face);
-                for (k, &vertex) in n.vertex.iter().enumerate() {
+                let first = prim::triangle_index(self.prim[l]) as usize * NORMALS_PER_TRIANGLE;
+                put(&mut self.face_normal, l, normals[first]);
+                for (k, &vertex) in
+                    normals[first + 1..first + NORMALS_PER_TRIANGLE].iter().enumerate()
+                {
                     put(&mut self.normals[k], l, vertex);
                 }
             }
@@ -173,17 +175,17 @@ impl DiffuseLanes {
     /// `load_surfaces` for lanes that all hit triangles, one coordinate of all 16 lanes at a
     /// time (`simd::gather16`: one AVX-512 gather each). `false` if an index is out of range,
     /// which leaves the checked loads of `load_surfaces` to report it.
-    fn gather_triangles(&mut self, normals: &[TriangleNormals]) -> bool {
-        const F: usize = TriangleNormals::FLOATS;
-        let flat = TriangleNormals::flat(normals);
+    fn gather_triangles(&mut self, normals: &[Vec3]) -> bool {
+        const F: u32 = 3 * NORMALS_PER_TRIANGLE as u32;
+        let flat = flat_coordinates(normals);
         if flat.len() > u32::MAX as usize {
             return false;
         }
         let triangle = self.prim.map(prim::triangle_index);
-        if triangle.iter().any(|&t| t as usize >= normals.len()) {
+        if triangle.iter().any(|&t| t as usize >= normals.len() / NORMALS_PER_TRIANGLE) {
             return false;
         }
-        let record = triangle.map(|t| F as u32 * t);
+        let record = triangle.map(|t| F * t);
         for axis in 0..3 {
             if !gather16(flat, &record.map(|r| r + axis as u32), &mut self.face_normal[axis]) {
                 return false;

@@ -30,35 +30,9 @@ pub struct Sphere {
     pub material: u32,
 }
 
-/// A triangle's normals in one 48-byte record, so that shading 16 hits reads them with 12
-/// independent gathers (`Scene::triangle_normals`): through the vertex indices it took 15, and
-/// the normals' gathers waited on the indices'.
-#[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct TriangleNormals {
-    /// The geometric normal, not normalised: (b - a) x (c - a).
-    pub face: Vec3,
-    /// The vertex normals, in the triangle's vertex order.
-    pub vertex: [Vec3; 3],
-}
-
-impl TriangleNormals {
-    /// Floats per record.
-    pub const FLOATS: usize = 12;
-
-    /// The records as one flat array of floats, `FLOATS` per triangle.
-    pub fn flat(records: &[TriangleNormals]) -> &[f32] {
-        const _: () =
-            assert!(std::mem::size_of::<TriangleNormals>() == 4 * TriangleNormals::FLOATS);
-        const _: () = assert!(std::mem::align_of::<TriangleNormals>() == 4);
-        // SAFETY: `TriangleNormals` is `#[repr(C)]` of four `glam::Vec3`s, each `#[repr(C)]`
-        // of three f32s, without padding (sizes checked above), so `records` is
-        // `FLOATS * len` initialised, suitably aligned f32 values, borrowed as long as it.
-        unsafe {
-            std::slice::from_raw_parts(records.as_ptr().cast::<f32>(), records.len() * Self::FLOATS)
-        }
-    }
-}
+/// Normals per triangle in `Scene::triangle_normals`: the face normal, then the three vertex
+/// normals.
+pub const NORMALS_PER_TRIANGLE: usize = 4;
 
 /// A loaded scene: triangles and spheres in world space, their materials, the lights and the
 /// camera description. [`Scene::load`] reads one from a COLLADA file.
@@ -119,18 +93,22 @@ impl Scene {
         [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
     }
 
-    /// Each triangle's normals as shading in lanes reads them (`TriangleNormals`): the
-    /// geometric normal, not normalised, (b - a) x (c - a) of its corners with the same
-    /// operations as `Surface::at` (so the same bits), and its three vertex normals. Memory
-    /// that cannot be had is an error.
-    pub fn triangle_normals(&self) -> crate::Result<Vec<TriangleNormals>> {
+    /// Each triangle's normals as shading in lanes reads them, `NORMALS_PER_TRIANGLE` (48
+    /// bytes) side by side, so that 16 hits take 12 independent gathers (through the vertex
+    /// indices it took 15, and the normals' gathers waited on the indices'): the geometric
+    /// normal, not normalised, (b - a) x (c - a) of its corners with the same operations as
+    /// `Surface::at` (so the same bits), then its three vertex normals. Memory that cannot be
+    /// had is an error.
+    pub fn triangle_normals(&self) -> crate::Result<Vec<Vec3>> {
         let what = "the triangles' normals";
-        let zero = TriangleNormals { face: Vec3::ZERO, vertex: [Vec3::ZERO; 3] };
-        let mut normals = crate::error::try_filled_vec(self.triangles.len(), zero, what)?;
-        for (i, n) in normals.iter_mut().enumerate() {
+        let len = self.triangles.len() * NORMALS_PER_TRIANGLE;
+        let mut normals = crate::error::try_filled_vec(len, Vec3::ZERO, what)?;
+        for (i, n) in normals.chunks_exact_mut(NORMALS_PER_TRIANGLE).enumerate() {
             let [a, b, c] = self.triangle(i);
-            n.face = (b - a).cross(c - a);
-            n.vertex = self.triangles[i].map(|v| self.normals[v as usize]);
+            n[0] = (b - a).cross(c - a);
+            for (k, &v) in self.triangles[i].iter().enumerate() {
+                n[1 + k] = self.normals[v as usize];
+            }
         }
         Ok(normals)
     }

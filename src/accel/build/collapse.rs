@@ -41,8 +41,7 @@ pub fn collapse_into(mut out: Vec<WideNode>, nodes: &[BvhNode], max_leaf: usize)
         return out;
     };
     assert!(max_leaf <= MAX_LEAF, "wide leaves hold at most {MAX_LEAF} triangles, not {max_leaf}");
-    let mut c = Collapser { nodes, ranges: subtree_ranges(nodes), max_leaf, plans: Vec::new() };
-    c.plans = c.plans();
+    let c = Collapser::new(nodes, max_leaf);
     out.reserve(wide_capacity(nodes));
     out.push(WideNode::EMPTY_NODE);
     if c.is_leaf(0) {
@@ -101,7 +100,14 @@ struct Plan {
     node: (u8, u8),
 }
 
-impl Collapser<'_> {
+impl<'a> Collapser<'a> {
+    /// The collapse of `nodes` (not empty), its plans made.
+    fn new(nodes: &'a [BvhNode], max_leaf: usize) -> Collapser<'a> {
+        let mut c = Collapser { nodes, ranges: subtree_ranges(nodes), max_leaf, plans: Vec::new() };
+        c.plans = c.plans();
+        c
+    }
+
     /// Whether binary node `i` becomes a wide leaf.
     fn is_leaf(&self, i: usize) -> bool {
         self.nodes[i].is_leaf() || self.ranges[i].1 as usize <= self.max_leaf
@@ -269,13 +275,7 @@ mod tests {
                 })
                 .collect();
             let bin = build(&boxes, BuildParams::default());
-            let mut c = Collapser {
-                nodes: &bin.nodes,
-                ranges: subtree_ranges(&bin.nodes),
-                max_leaf: 8,
-                plans: vec![],
-            };
-            c.plans = c.plans();
+            let c = Collapser::new(&bin.nodes, 8);
             let wide = collapse(&bin.nodes, 8);
             let planned = c.plans[0].cost[0];
             let built = wide_cost(&wide, 0, half_area(&bin.nodes[0]));
