@@ -46,7 +46,8 @@ pub struct BenchArgs {
     #[arg(long = "packet-fallback", value_name = "N",
           value_parser = |s: &str| parse_in_range("--packet-fallback", s, 0, 8))]
     fallback: Option<u32>,
-    /// Timed repetitions after a warm-up; the best counts
+    /// Timed repetitions after a warm-up; the best counts. A set under 400k rays is traced
+    /// ceil(400k / rays) times per repetition, as the peer harness does
     #[arg(long, value_name = "N", default_value = "5",
           value_parser = |s: &str| parse_in_range("--reps", s, 1, 10_000).map(|n| n as usize))]
     reps: usize,
