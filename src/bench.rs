@@ -536,9 +536,9 @@ pub fn time_trace(
     let mut out = TraceOutputs::new(set, rays.len());
     let stats = trace_once(accel, rays, set, traversal, fallback, pool, &mut out);
     let totals = out.totals(stats);
+    let times = traces_per_rep(rays.len());
     let best = (0..reps.max(1))
         .map(|_| {
-            let times = traces_per_rep(rays.len());
             let t0 = Instant::now();
             for _ in 0..times {
                 let again = trace_once(accel, rays, set, traversal, fallback, pool, &mut out);
