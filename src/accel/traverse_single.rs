@@ -35,7 +35,11 @@ pub(super) struct WideRay {
     inv_dir: [ChildLanes; 3],
     neg_o_inv: [ChildLanes; 3],
     slack: ChildLanes,
-    neg: [bool; 3],
+    /// Per axis, the node's row holding the near plane (the minimum, or the maximum where
+    /// the direction is negative) and the far plane: chosen once per ray instead of at every
+    /// node (PERF.md, "Node rows chosen per ray").
+    near: [Row; 3],
+    far: [Row; 3],
     t_min: ChildLanes,
     /// The ray as the triangle test takes it.
     pub(super) leaf: LeafRay,
@@ -56,7 +60,8 @@ impl WideRay {
             inv_dir: [inv_v.x, inv_v.y, inv_v.z],
             neg_o_inv: [c.x, c.y, c.z],
             slack,
-            neg: inv.map(f32::is_sign_negative),
+            near: Row::near(inv),
+            far: Row::far(inv),
             t_min: ChildLanes::splat(ray.t_min),
             leaf: LeafRay::new(ray),
         }
@@ -72,7 +77,8 @@ impl WideRay {
             inv_dir: inv.map(ChildLanes::splat),
             neg_o_inv: lane(&p.neg_o_inv).map(ChildLanes::splat),
             slack: ChildLanes::splat(p.slack.lane(i)),
-            neg: inv.map(f32::is_sign_negative),
+            near: Row::near(inv),
+            far: Row::far(inv),
             t_min: ChildLanes::splat(p.t_min.lane(i)),
             leaf,
         }
@@ -84,17 +90,47 @@ impl WideRay {
     /// of the two plane distances (the product with a fixed-sign factor is monotonic).
     #[inline(always)]
     pub(super) fn slab(&self, n: &WideNode, t_max: f32) -> (ChildLanes, u32) {
-        let plane = |axis: usize, max: bool| {
-            // `max as usize` is 0 or 1, so the row index is provably in bounds.
-            let row = ChildLanes::new(n.bounds[2 * axis + max as usize]);
-            row.mul_add(self.inv_dir[axis], self.neg_o_inv[axis])
+        // A `Row` is below 6, so indexing the bounds needs no check.
+        let plane = |axis: usize, row: Row| {
+            ChildLanes::new(n.bounds[row as usize])
+                .mul_add(self.inv_dir[axis], self.neg_o_inv[axis])
         };
-        let near = |axis: usize| plane(axis, self.neg[axis]);
-        let far = |axis: usize| plane(axis, !self.neg[axis]);
+        let near = |axis: usize| plane(axis, self.near[axis]);
+        let far = |axis: usize| plane(axis, self.far[axis]);
         let t_near = near(0).fast_max(near(1)).fast_max(near(2)).fast_max(self.t_min) - self.slack;
         let t_far = far(0).fast_min(far(1)).fast_min(far(2)).fast_min(ChildLanes::splat(t_max));
         let t_far = t_far.mul_add(ChildLanes::splat(BOX_INFLATE), self.slack);
         (t_near, t_near.simd_le(t_far).bitmask())
+    }
+}
+
+/// A row of `WideNode::bounds`: `2 * axis` holds the minima, `2 * axis + 1` the maxima.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(usize)]
+enum Row {
+    MinX = 0,
+    MaxX = 1,
+    MinY = 2,
+    MaxY = 3,
+    MinZ = 4,
+    MaxZ = 5,
+}
+
+impl Row {
+    const MIN: [Row; 3] = [Row::MinX, Row::MinY, Row::MinZ];
+    const MAX: [Row; 3] = [Row::MaxX, Row::MaxY, Row::MaxZ];
+
+    /// Per axis, the row a ray with reciprocal direction `inv` enters a box by: the minimum,
+    /// or the maximum where the direction is negative.
+    #[inline(always)]
+    fn near(inv: [f32; 3]) -> [Row; 3] {
+        [0, 1, 2].map(|a| if inv[a].is_sign_negative() { Row::MAX[a] } else { Row::MIN[a] })
+    }
+
+    /// Per axis, the row the ray leaves a box by.
+    #[inline(always)]
+    fn far(inv: [f32; 3]) -> [Row; 3] {
+        [0, 1, 2].map(|a| if inv[a].is_sign_negative() { Row::MIN[a] } else { Row::MAX[a] })
     }
 }
 
