@@ -100,7 +100,7 @@ pub trait SimdF32:
 /// multiple of its alignment), rounded up to whole lines.
 const fn lines_spanned<T>() -> usize {
     let align = std::mem::align_of::<T>();
-    let lead = if align >= 64 { 0 } else { 64 - align };
+    let lead = 64_usize.saturating_sub(align);
     (lead + std::mem::size_of::<T>()).div_ceil(64)
 }
 
