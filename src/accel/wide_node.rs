@@ -114,4 +114,24 @@ mod tests {
         }
         assert_eq!(leaf_range(EMPTY).1, 0);
     }
+
+    /// `simd::prefetch` issues `lines_spanned` prefetches from the line a node starts in: they
+    /// must reach its last byte wherever a 32-byte aligned node starts in a line, and a triangle
+    /// block's (64-byte aligned) too.
+    #[test]
+    fn prefetches_cover_nodes_and_blocks() {
+        use crate::geometry::triangles::TriangleBlock;
+        use crate::simd::lines_spanned;
+        fn covered<T>(expect: usize) {
+            let (size, align) = (std::mem::size_of::<T>(), std::mem::align_of::<T>());
+            assert_eq!(lines_spanned::<T>(), expect);
+            for start in (0..64).step_by(align.min(64)) {
+                let last_line = (start + size - 1) / 64;
+                assert!(last_line < lines_spanned::<T>(), "start {start}");
+            }
+        }
+        covered::<WideNode>(4);
+        covered::<TriangleBlock>(5);
+        covered::<u8>(1);
+    }
 }

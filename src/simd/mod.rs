@@ -98,7 +98,7 @@ pub trait SimdF32:
 
 /// The most cache lines a `T` can touch: its size plus how far into a line it can start (a
 /// multiple of its alignment), rounded up to whole lines.
-const fn lines_spanned<T>() -> usize {
+pub(crate) const fn lines_spanned<T>() -> usize {
     let align = std::mem::align_of::<T>();
     let lead = 64_usize.saturating_sub(align);
     (lead + std::mem::size_of::<T>()).div_ceil(64)
