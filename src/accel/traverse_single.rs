@@ -291,6 +291,7 @@ pub fn intersect(
 /// Closest hit within the subtree `start` (whose box the caller has tested; packets hand
 /// their last few lanes over here), improving on `best`, whose distance is `ray.t_max`;
 /// `wr` is `ray` prepared (`WideRay::new`, or `WideRay::of_lane` for a packet's lane).
+#[inline(always)]
 pub(super) fn intersect_subtree(
     nodes: &[WideNode],
     tris: &TriangleSoa,
