@@ -148,11 +148,15 @@ impl DiffuseLanes {
         // Gathers pay where one instruction makes a lane vector (AVX-512: -m 5 renders
         // 0.98-0.99x); below it the checked loop was slower than the loads below (1.04x).
         self.spheres = 0;
-        if cfg!(target_feature = "avx512f")
-            && self.prim.iter().all(|&p| !prim::is_sphere(p))
-            && self.gather_triangles(normals)
-        {
-            return;
+        if self.prim.iter().all(|&p| !prim::is_sphere(p)) {
+            let loaded = if cfg!(target_feature = "avx512f") {
+                self.gather_triangles(normals)
+            } else {
+                self.transpose_triangles(normals)
+            };
+            if loaded {
+                return;
+            }
         }
         for l in 0..LANES {
             if prim::is_sphere(self.prim[l]) {
@@ -199,6 +203,33 @@ impl DiffuseLanes {
                 }
             }
         }
+        true
+    }
+
+    /// `load_surfaces` for lanes that all hit triangles, below AVX-512: each lane's normals
+    /// record (face normal and three vertex normals, 12 floats) read as two overlapping rows of
+    /// 8 and turned into lanes by two 8 x 8 transposes (`columns8`), then stored as lane
+    /// vectors. The lane-by-lane loads stored 12 scalars per lane, and the vector loads of
+    /// `surface` then waited on failed store-to-load forwards (as `DiffuseLanes` says of the
+    /// vertex values). `false` if an index is out of range, which leaves the checked loads of
+    /// `load_surfaces` to report it.
+    fn transpose_triangles(&mut self, normals: &[Vec3]) -> bool {
+        const F: usize = 3 * NORMALS_PER_TRIANGLE;
+        let flat = flat_coordinates(normals);
+        let first = self.prim.map(|p| prim::triangle_index(p) as usize * F);
+        if first.iter().any(|&f| f + F > flat.len()) {
+            return false;
+        }
+        let row =
+            |l: usize, at: usize| -> [f32; 8] { std::array::from_fn(|k| flat[first[l] + at + k]) };
+        // Row one: face (x, y, z), vertex 0 (x, y, z), vertex 1 (x, y); row two starts at
+        // float 4 so that its last four are vertex 1's z and vertex 2 (x, y, z).
+        let [fx, fy, fz, ax, ay, az, bx, by] = V::columns8(LANES, |l| row(l, 0));
+        let [_, _, _, _, bz, cx, cy, cz] = V::columns8(LANES, |l| row(l, 4));
+        V3 { x: fx, y: fy, z: fz }.store(&mut self.face_normal);
+        V3 { x: ax, y: ay, z: az }.store(&mut self.normals[0]);
+        V3 { x: bx, y: by, z: bz }.store(&mut self.normals[1]);
+        V3 { x: cx, y: cy, z: cz }.store(&mut self.normals[2]);
         true
     }
 
