@@ -37,7 +37,7 @@ pub(super) struct WideRay {
     slack: ChildLanes,
     /// Per axis, the node's row holding the near plane (the minimum, or the maximum where
     /// the direction is negative) and the far plane: chosen once per ray instead of at every
-    /// node (PERF.md, "Node rows chosen per ray").
+    /// node (PERF.md, "Instructions per ray on Zen 3").
     near: [Row; 3],
     far: [Row; 3],
     t_min: ChildLanes,

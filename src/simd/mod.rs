@@ -107,8 +107,8 @@ pub(crate) const fn lines_spanned<T>() -> usize {
 /// Starts loading every cache line of the `T` at `p` (which need not be dereferenceable): a
 /// fixed number of prefetches, the most lines a `T` can span, so the loop unrolls and has no
 /// branch (a loop to the object's last line cost about 20 instructions per call; PERF.md,
-/// "Node rows chosen per ray"). The last may fall just past the object when it starts early
-/// in a line.
+/// "Instructions per ray on Zen 3"). The last may fall just past the object when it starts
+/// early in a line.
 #[inline(always)]
 pub fn prefetch<T>(p: *const T) {
     let first = p as usize & !63;
