@@ -15,7 +15,7 @@ use std::mem::MaybeUninit;
 use super::build::MAX_DEPTH;
 use super::leaf::{intersect_leaf, occluded_leaf, LeafRay};
 use super::packet::{safe_recip, slab_terms, RayPacket, BOX_INFLATE};
-use super::wide_node::{leaf_range, ChildLanes, WideNode, ARITY, LEAF_BIT};
+use super::wide_node::{leaf_range, ChildLanes, Row, WideNode, ARITY, LEAF_BIT};
 use super::TraceStats;
 use crate::geometry::triangles::{TriangleSoa, LANES};
 use crate::geometry::watertight::V3;
@@ -101,36 +101,6 @@ impl WideRay {
         let t_far = far(0).fast_min(far(1)).fast_min(far(2)).fast_min(ChildLanes::splat(t_max));
         let t_far = t_far.mul_add(ChildLanes::splat(BOX_INFLATE), self.slack);
         (t_near, t_near.simd_le(t_far).bitmask())
-    }
-}
-
-/// A row of `WideNode::bounds`: `2 * axis` holds the minima, `2 * axis + 1` the maxima.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[repr(usize)]
-enum Row {
-    MinX = 0,
-    MaxX = 1,
-    MinY = 2,
-    MaxY = 3,
-    MinZ = 4,
-    MaxZ = 5,
-}
-
-impl Row {
-    const MIN: [Row; 3] = [Row::MinX, Row::MinY, Row::MinZ];
-    const MAX: [Row; 3] = [Row::MaxX, Row::MaxY, Row::MaxZ];
-
-    /// Per axis, the row a ray with reciprocal direction `inv` enters a box by: the minimum,
-    /// or the maximum where the direction is negative.
-    #[inline(always)]
-    fn near(inv: [f32; 3]) -> [Row; 3] {
-        [0, 1, 2].map(|a| if inv[a].is_sign_negative() { Row::MAX[a] } else { Row::MIN[a] })
-    }
-
-    /// Per axis, the row the ray leaves a box by.
-    #[inline(always)]
-    fn far(inv: [f32; 3]) -> [Row; 3] {
-        [0, 1, 2].map(|a| if inv[a].is_sign_negative() { Row::MIN[a] } else { Row::MAX[a] })
     }
 }
 

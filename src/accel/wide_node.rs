@@ -101,6 +101,36 @@ impl WideNode {
     }
 }
 
+/// A row of `WideNode::bounds`: `2 * axis` holds the minima, `2 * axis + 1` the maxima.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(usize)]
+pub(super) enum Row {
+    MinX = 0,
+    MaxX = 1,
+    MinY = 2,
+    MaxY = 3,
+    MinZ = 4,
+    MaxZ = 5,
+}
+
+impl Row {
+    const MIN: [Row; 3] = [Row::MinX, Row::MinY, Row::MinZ];
+    const MAX: [Row; 3] = [Row::MaxX, Row::MaxY, Row::MaxZ];
+
+    /// Per axis, the row a ray with reciprocal direction `inv` enters a box by: the minimum,
+    /// or the maximum where the direction is negative.
+    #[inline(always)]
+    pub(super) fn near(inv: [f32; 3]) -> [Row; 3] {
+        [0, 1, 2].map(|a| if inv[a].is_sign_negative() { Row::MAX[a] } else { Row::MIN[a] })
+    }
+
+    /// Per axis, the row the ray leaves a box by.
+    #[inline(always)]
+    pub(super) fn far(inv: [f32; 3]) -> [Row; 3] {
+        [0, 1, 2].map(|a| if inv[a].is_sign_negative() { Row::MIN[a] } else { Row::MAX[a] })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
