@@ -43,7 +43,8 @@ const _: () = assert!(LANES == DRAW_BLOCK);
 /// into lanes by 8 x 8 transposes (`vertex`): a vertex's values stored one float per lane
 /// array cost 27 scalar stores per vertex, and the vector loads after them waited on failed
 /// store-to-load forwards. The surfaces' face and vertex normals are gathered in AVX-512 builds
-/// (`gather_triangles`) and loaded lane by lane below it.
+/// (`gather_triangles`), transposed from rows below it (`transpose_triangles`), and loaded
+/// lane by lane where a lane hit a sphere.
 #[derive(Default)]
 pub struct DiffuseLanes {
     /// Lanes in use: vertices pushed so far (at most `LANES`).
@@ -146,7 +147,8 @@ impl DiffuseLanes {
     /// vertex normals from `RenderContext::triangle_normals`, a sphere's centre and radius).
     fn load_surfaces(&mut self, scene: &Scene, normals: &[Vec3]) {
         // Gathers pay where one instruction makes a lane vector (AVX-512: -m 5 renders
-        // 0.98-0.99x); below it the checked loop was slower than the loads below (1.04x).
+        // 0.98-0.99x); below it a checked gather loop was slower than the lane-by-lane loads
+        // at the end (1.04x), and rows transposed take fewer instructions than either.
         self.spheres = 0;
         if self.prim.iter().all(|&p| !prim::is_sphere(p)) {
             let loaded = if cfg!(target_feature = "avx512f") {
