@@ -56,12 +56,13 @@ impl WideRay {
         };
         let inv_v = splat(inv);
         let (c, slack) = slab_terms(&splat([ray.origin.x, ray.origin.y, ray.origin.z]), &inv_v);
+        let (near, far) = Row::near_far(inv);
         WideRay {
             inv_dir: [inv_v.x, inv_v.y, inv_v.z],
             neg_o_inv: [c.x, c.y, c.z],
             slack,
-            near: Row::near(inv),
-            far: Row::far(inv),
+            near,
+            far,
             t_min: ChildLanes::splat(ray.t_min),
             leaf: LeafRay::new(ray),
         }
@@ -73,12 +74,13 @@ impl WideRay {
     pub(super) fn of_lane<V: SimdF32>(p: &RayPacket<V>, i: usize, leaf: LeafRay) -> WideRay {
         let lane = |v: &V3<V>| [v.x.lane(i), v.y.lane(i), v.z.lane(i)];
         let inv = lane(&p.inv_dir);
+        let (near, far) = Row::near_far(inv);
         WideRay {
             inv_dir: inv.map(ChildLanes::splat),
             neg_o_inv: lane(&p.neg_o_inv).map(ChildLanes::splat),
             slack: ChildLanes::splat(p.slack.lane(i)),
-            near: Row::near(inv),
-            far: Row::far(inv),
+            near,
+            far,
             t_min: ChildLanes::splat(p.t_min.lane(i)),
             leaf,
         }

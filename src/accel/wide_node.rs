@@ -117,17 +117,13 @@ impl Row {
     const MIN: [Row; 3] = [Row::MinX, Row::MinY, Row::MinZ];
     const MAX: [Row; 3] = [Row::MaxX, Row::MaxY, Row::MaxZ];
 
-    /// Per axis, the row a ray with reciprocal direction `inv` enters a box by: the minimum,
-    /// or the maximum where the direction is negative.
+    /// Per axis, the rows a ray with reciprocal direction `inv` enters and leaves a box by:
+    /// (minimum, maximum), swapped where the direction is negative.
     #[inline(always)]
-    pub(super) fn near(inv: [f32; 3]) -> [Row; 3] {
-        [0, 1, 2].map(|a| if inv[a].is_sign_negative() { Row::MAX[a] } else { Row::MIN[a] })
-    }
-
-    /// Per axis, the row the ray leaves a box by.
-    #[inline(always)]
-    pub(super) fn far(inv: [f32; 3]) -> [Row; 3] {
-        [0, 1, 2].map(|a| if inv[a].is_sign_negative() { Row::MIN[a] } else { Row::MAX[a] })
+    pub(super) fn near_far(inv: [f32; 3]) -> ([Row; 3], [Row; 3]) {
+        let neg = inv.map(f32::is_sign_negative);
+        let pick = |a: usize, max: bool| if max { Row::MAX[a] } else { Row::MIN[a] };
+        ([0, 1, 2].map(|a| pick(a, neg[a])), [0, 1, 2].map(|a| pick(a, !neg[a])))
     }
 }
 
