@@ -3,12 +3,14 @@
 
 use std::io::Write;
 use std::path::Path;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use rayon::prelude::*;
 
 pub mod record;
+pub mod timing;
 pub use record::BenchRecord;
+pub use timing::{TimedBy, Timing};
 
 use crate::accel::traverse_packet::default_fallback;
 use crate::accel::{Accel, TraceStats};
@@ -462,8 +464,8 @@ pub struct BenchResult {
     pub traversal: Traversal,
     /// Build time of the acceleration structure, in milliseconds.
     pub build_ms: f64,
-    /// Millions of rays per second of the best timed repetition.
-    pub mrays_per_s: f64,
+    /// How the trace was timed (`timing`); `mrays_per_s` follows from it.
+    pub timing: Timing,
     /// Checksums and exact counters of the trace.
     pub totals: TraceTotals,
     /// Bytes of the acceleration structure (`Accel::memory_bytes`) per triangle.
@@ -471,6 +473,16 @@ pub struct BenchResult {
 }
 
 impl BenchResult {
+    /// Millions of rays per second, by the peer harness's rule (`timing`).
+    pub fn mrays_per_s(&self) -> f64 {
+        mrays(self.rays, self.timing.best)
+    }
+
+    /// Millions of rays per second of the best wall time of any repetition.
+    pub fn wall_mrays_per_s(&self) -> f64 {
+        mrays(self.rays, self.timing.best_wall)
+    }
+
     /// Ray-box tests per ray of the set.
     pub fn node_tests_per_ray(&self) -> f64 {
         self.totals.stats.node_tests as f64 / self.rays.max(1) as f64
@@ -491,7 +503,11 @@ impl BenchResult {
             threads: self.threads,
             traversal: self.traversal.name().into(),
             build_ms: self.build_ms,
-            mrays_per_s: self.mrays_per_s,
+            mrays_per_s: self.mrays_per_s(),
+            timed_by: self.timing.timed_by.name().into(),
+            wall_mrays_per_s: self.wall_mrays_per_s(),
+            clean_reps: self.timing.clean,
+            reps_made: self.timing.attempts,
             node_tests_per_ray: self.node_tests_per_ray(),
             triangle_tests_per_ray: self.triangle_tests_per_ray(),
             hits: self.totals.hits,
@@ -503,6 +519,11 @@ impl BenchResult {
             isa: crate::simd::isa::Isa::compiled().name().into(),
         }
     }
+}
+
+/// Millions of `rays` per `time`.
+fn mrays(rays: usize, time: Duration) -> f64 {
+    rays as f64 / time.as_secs_f64().max(1e-12) / 1e6
 }
 
 /// Rays one timed repetition traces at least: a smaller set is traced several times over per
@@ -519,11 +540,13 @@ fn traces_per_rep(rays: usize) -> usize {
     RAYS_PER_REP.div_ceil(rays)
 }
 
-/// Traces once to warm caches, then `reps` timed times; returns the best time of one trace
-/// and the totals (identical every repetition: the counters are deterministic). The clock runs
-/// around `trace_once` alone: output buffers are allocated before it and checksums summed
-/// after it, as the peer harness times its kernels; a set under `RAYS_PER_REP` rays is traced
-/// `traces_per_rep` times per repetition, and the time is that repetition's mean per trace.
+/// Traces once to warm caches, then repeats the trace under the peer harness's rule
+/// (`timing::time_repetitions`: `reps` clean repetitions wanted, at most twice as many made);
+/// returns the timing of one trace and the totals (identical every repetition: the counters
+/// are deterministic). The clock runs around `trace_once` alone: output buffers are allocated
+/// before it and checksums summed after it, as the peer harness times its kernels; a set under
+/// `RAYS_PER_REP` rays is traced `traces_per_rep` times per repetition, and the time is that
+/// repetition's mean per trace.
 pub fn time_trace(
     accel: &Accel,
     rays: &[Ray],
@@ -532,23 +555,20 @@ pub fn time_trace(
     fallback: Option<u32>,
     pool: &rayon::ThreadPool,
     reps: usize,
-) -> (Duration, TraceTotals) {
+) -> (Timing, TraceTotals) {
     let mut out = TraceOutputs::new(set, rays.len());
     let stats = trace_once(accel, rays, set, traversal, fallback, pool, &mut out);
     let totals = out.totals(stats);
     let times = traces_per_rep(rays.len());
-    let best = (0..reps.max(1))
-        .map(|_| {
-            let t0 = Instant::now();
-            for _ in 0..times {
-                let again = trace_once(accel, rays, set, traversal, fallback, pool, &mut out);
-                debug_assert_eq!(again, stats);
-            }
-            t0.elapsed() / times as u32
-        })
-        .min()
-        .unwrap_or_default();
-    (best, totals)
+    let mut timing = timing::time_repetitions(pool, reps, || {
+        for _ in 0..times {
+            let again = trace_once(accel, rays, set, traversal, fallback, pool, &mut out);
+            debug_assert_eq!(again, stats);
+        }
+    });
+    timing.best /= times as u32;
+    timing.best_wall /= times as u32;
+    (timing, totals)
 }
 
 #[cfg(test)]

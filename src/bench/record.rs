@@ -22,8 +22,24 @@ pub struct BenchRecord {
     pub traversal: String,
     /// Build time of the acceleration structure, in milliseconds.
     pub build_ms: f64,
-    /// Millions of rays per second of the best timed repetition.
+    /// Millions of rays per second, by the peer harness's rule (`bench::timing`): the best
+    /// wall time when every asked repetition was clean, else the CPU-time estimate.
     pub mrays_per_s: f64,
+    /// Which time `mrays_per_s` comes from: `wall` or `cpu` (`bench::timing`); empty when
+    /// read from a line written before it was recorded.
+    #[serde(default)]
+    pub timed_by: String,
+    /// Millions of rays per second of the best wall time of any repetition, clean or not; 0
+    /// when read from such an older line.
+    #[serde(default)]
+    pub wall_mrays_per_s: f64,
+    /// Repetitions whose workers got their share of the CPU, and repetitions made; 0 when
+    /// read from such an older line.
+    #[serde(default)]
+    pub clean_reps: usize,
+    /// See `clean_reps`.
+    #[serde(default)]
+    pub reps_made: usize,
     /// Ray-box tests per ray.
     pub node_tests_per_ray: f64,
     /// Ray-triangle tests per ray.
@@ -156,6 +172,10 @@ mod tests {
             traversal: traversal.into(),
             build_ms: 1.0,
             mrays_per_s: 2.0,
+            timed_by: "wall".into(),
+            wall_mrays_per_s: 2.0,
+            clean_reps: 5,
+            reps_made: 5,
             node_tests_per_ray: node_tests as f64 / 100.0,
             triangle_tests_per_ray: 3.0,
             hits,

@@ -6,7 +6,7 @@ use clap::Args;
 
 use super::{parse_byte_count, parse_in_range, parse_number};
 use pathtracer::accel::{Accel, AccelKind};
-use pathtracer::bench::{self, BenchRecord, BenchResult, RaySet, Traversal};
+use pathtracer::bench::{self, BenchRecord, BenchResult, RaySet, TimedBy, Traversal};
 use pathtracer::staged::Outputs;
 use pathtracer::{bail, scene, Error, Result};
 
@@ -47,7 +47,9 @@ pub struct BenchArgs {
           value_parser = |s: &str| parse_in_range("--packet-fallback", s, 0, 8))]
     fallback: Option<u32>,
     /// Timed repetitions after a warm-up; the best counts. A set under 400k rays is traced
-    /// ceil(400k / rays) times per repetition, as the peer harness does
+    /// ceil(400k / rays) times per repetition, and a repetition whose threads lost more than 3%
+    /// of their CPU to other processes is made again (at most 2N in all), as the peer harness
+    /// does
     #[arg(long, value_name = "N", default_value = "5",
           value_parser = |s: &str| parse_in_range("--reps", s, 1, 10_000).map(|n| n as usize))]
     reps: usize,
@@ -120,7 +122,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         for &traversal in &a.traversals {
             let ordered = bench::packet_order(*set, traversal, rays);
             let traced = ordered.as_deref().unwrap_or(rays);
-            let (best, totals) =
+            let (timing, totals) =
                 bench::time_trace(&accel, traced, *set, traversal, a.fallback, &pool, a.reps);
             let r = BenchResult {
                 scene: name.clone(),
@@ -130,7 +132,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
                 threads: a.threads,
                 traversal,
                 build_ms,
-                mrays_per_s: rays.len() as f64 / best.as_secs_f64().max(1e-12) / 1e6,
+                timing,
                 totals,
                 bytes_per_triangle: accel.memory_bytes() as f64
                     / scene.triangles.len().max(1) as f64,
@@ -210,7 +212,7 @@ fn format_table(results: &[BenchResult]) -> String {
     );
     for r in results {
         s += &format!(
-            "{:<18} {:>9} {:<8} {:>7} {:>3} {:<8} {:>9.1} {:>9.2} {:>10.2} {:>9.2} {:>8} {:>16.4} {:>6.1}\n",
+            "{:<18} {:>9} {:<8} {:>7} {:>3} {:<8} {:>9.1} {:>9} {:>10.2} {:>9.2} {:>8} {:>16.4} {:>6.1}\n",
             r.scene,
             r.triangles,
             r.ray_set.name(),
@@ -218,7 +220,7 @@ fn format_table(results: &[BenchResult]) -> String {
             r.threads,
             r.traversal.name(),
             r.build_ms,
-            r.mrays_per_s,
+            mrays_cell(r),
             r.node_tests_per_ray(),
             r.triangle_tests_per_ray(),
             r.totals.hits,
@@ -226,9 +228,19 @@ fn format_table(results: &[BenchResult]) -> String {
             r.bytes_per_triangle
         );
     }
+    if results.iter().any(|r| r.timing.timed_by == TimedBy::Cpu) {
+        s += "* CPU-time estimate: fewer repetitions than --reps got their threads' share of the \
+              CPU (the peer harness's rule)\n";
+    }
     let isa = pathtracer::simd::isa::Isa::compiled();
     s += &format!("isa: {isa} (the {} build)\n", isa.target_cpu());
     s
+}
+
+/// A result's Mrays/s, marked `*` when it is the CPU-time estimate (the peer harness's mark).
+fn mrays_cell(r: &BenchResult) -> String {
+    let mark = if r.timing.timed_by == TimedBy::Cpu { "*" } else { "" };
+    format!("{:.2}{mark}", r.mrays_per_s())
 }
 
 fn parse_percent(text: &str) -> Result<f64> {
