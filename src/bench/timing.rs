@@ -93,10 +93,10 @@ impl Repetitions {
         });
         if clean {
             self.clean += 1;
-            self.best_clean = Some(self.best_clean.map_or(wall, |b| b.min(wall)));
+            keep_least(&mut self.best_clean, wall);
         }
-        self.best_wall = Some(self.best_wall.map_or(wall, |b| b.min(wall)));
-        self.best_cpu = Some(self.best_cpu.map_or(per_thread, |b| b.min(per_thread)));
+        keep_least(&mut self.best_wall, wall);
+        keep_least(&mut self.best_cpu, per_thread);
     }
 
     /// The figure to report: the best clean wall time when every asked repetition was clean,
@@ -109,6 +109,11 @@ impl Repetitions {
         let best_wall = self.best_wall.unwrap_or_default();
         Timing { best, timed_by, best_wall, clean: self.clean, attempts: self.attempts }
     }
+}
+
+/// `best` becomes `d` if it is unset or larger.
+fn keep_least(best: &mut Option<Duration>, d: Duration) {
+    *best = Some(best.map_or(d, |b| b.min(d)));
 }
 
 /// Runs `rep` (one repetition) under the harness's rule on `pool` and returns the timing:
