@@ -356,7 +356,10 @@ impl Accel {
         stats.rays += rays.len() as u64;
         let (nodes, tris) = (&self.wide_nodes, &self.tris);
         if self.in_l2 {
-            intersect_stream::<1, false>(nodes, tris, rays, hits, stats);
+            // One ray at a time: the plain walk, whose box-test terms stay in registers.
+            for (r, h) in rays.iter().zip(hits.iter_mut()) {
+                *h = traverse_single::intersect(nodes, tris, &mut { *r }, stats);
+            }
         } else if !self.large {
             intersect_stream::<STREAM_SMALL, false>(nodes, tris, rays, hits, stats);
         } else {

@@ -31,6 +31,7 @@ const _: () = assert!(STACK == 449 && std::mem::size_of::<Entry>() == 8);
 /// A ray prepared for wide box tests: reciprocal direction and the fused slab test's terms
 /// (`packet::slab_terms`) broadcast, and per axis whether the direction is negative (then the
 /// box maximum is the near plane).
+#[derive(Clone, Copy)]
 pub(super) struct WideRay {
     inv_dir: [ChildLanes; 3],
     neg_o_inv: [ChildLanes; 3],
@@ -279,10 +280,14 @@ pub(super) fn intersect_subtree(
     let mut node_tests = 0u64;
     let mut cur = start;
     'visit: loop {
+        // The box test reads a copy made here: with `wr`'s terms read through the reference,
+        // they were reloaded from memory at every node visit (the leaf test below needs the
+        // registers). PERF.md, "Embree's single rays under callgrind".
+        let terms = *wr;
         while cur.child & LEAF_BIT == 0 {
             let n = &nodes[cur.child as usize];
             node_tests += n.children() as u64;
-            match descend(nodes, wr, n, ray.t_max, &mut stack) {
+            match descend(nodes, &terms, n, ray.t_max, &mut stack) {
                 Some(next) => cur = next,
                 None => break,
             }
