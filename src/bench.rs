@@ -5,7 +5,8 @@ use std::io::Write;
 use std::path::Path;
 use std::time::Duration;
 
-use rayon::prelude::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
 
 pub mod record;
 pub mod timing;
@@ -309,9 +310,10 @@ pub fn packet_order(set: RaySet, traversal: Traversal, rays: &[Ray]) -> Option<V
     Some(out)
 }
 
-/// Rays per unit of parallel work: large enough to amortise scheduling, small enough to
-/// balance two threads on the 34k-ray sets.
-const CHUNK: usize = 2048;
+/// Rays per unit of parallel work, as the peer harness shares its rays out (its `CHUNK`): a
+/// multiple of 16, so packets are whole, and small enough that the last chunk keeps one of two
+/// threads waiting only briefly.
+const CHUNK: usize = 512;
 
 /// Every ray's answer, in buffers allocated before the clock starts (as the peer harness
 /// allocates its output array before timing): closest hits for `primary` / `diffuse`,
@@ -353,6 +355,23 @@ impl TraceOutputs {
         t.answers = digest.0;
         t
     }
+
+    /// The answer buffers cut into `CHUNK`-sized jobs beside their rays, each behind its own
+    /// lock so that whichever worker claims a job can fill it.
+    fn jobs<'a>(&'a mut self, rays: &'a [Ray]) -> Vec<Mutex<Job<'a>>> {
+        let hits = self.hits.chunks_mut(CHUNK).map(Answers::Hits);
+        let blocked = self.blocked.chunks_mut(CHUNK).map(Answers::Blocked);
+        rays.chunks(CHUNK).zip(hits.chain(blocked)).map(|(r, a)| Mutex::new((r, a))).collect()
+    }
+}
+
+/// A chunk of rays and the slice its answers go to.
+type Job<'a> = (&'a [Ray], Answers<'a>);
+
+/// Where a chunk's answers go.
+enum Answers<'a> {
+    Hits(&'a mut [Option<Hit>]),
+    Blocked(&'a mut [bool]),
 }
 
 /// 64-bit FNV-1a, fed 32-bit words (little-endian bytes).
@@ -374,37 +393,48 @@ impl Fnv1a {
 
 /// Traces `rays` once with `threads` threads (a pool the caller made), writing every ray's
 /// answer to `out` (made by `TraceOutputs::new` for this set and ray count); returns the
-/// counters. Only this is timed: the checksums come from `out` afterwards.
+/// counters and the CPU time the workers spent tracing (`None` where a thread's CPU time cannot
+/// be read). Only this is timed: the checksums come from `out` afterwards.
+///
+/// The rays are shared out as the peer harness shares them: every worker takes the next
+/// `CHUNK` from a common counter until none is left, and its CPU time is read when it starts
+/// and when it runs out of chunks, so the time counted is tracing, not waiting for a chunk.
 /// `fallback`: the packets' single-ray fallback threshold (`None`: the default of the width).
 pub(crate) fn trace_once(
     accel: &Accel,
     rays: &[Ray],
-    set: RaySet,
     traversal: Traversal,
     fallback: Option<u32>,
     pool: &rayon::ThreadPool,
     out: &mut TraceOutputs,
-) -> TraceStats {
+) -> (TraceStats, Option<Duration>) {
     let fallback = fallback.unwrap_or(default_fallback(traversal.width()));
-    let per_chunk: Vec<TraceStats> = pool.install(|| {
-        if set.is_occlusion() {
-            rays.par_chunks(CHUNK)
-                .zip(out.blocked.par_chunks_mut(CHUNK))
-                .with_max_len(1)
-                .map(|(r, b)| occluded_chunk(accel, r, traversal, fallback, b))
-                .collect()
-        } else {
-            rays.par_chunks(CHUNK)
-                .zip(out.hits.par_chunks_mut(CHUNK))
-                .with_max_len(1)
-                .map(|(r, h)| intersect_chunk(accel, r, traversal, fallback, h))
-                .collect()
+    let jobs = out.jobs(rays);
+    let next = AtomicUsize::new(0);
+    let per_worker = pool.broadcast(|_| {
+        let start = timing::thread_cpu_time();
+        let mut stats = TraceStats::default();
+        while let Some(job) = jobs.get(next.fetch_add(1, Ordering::Relaxed)) {
+            // Each job is claimed once, so its lock is never contended (nor poisoned: a
+            // panicking trace ends the benchmark).
+            let mut job = job.lock().unwrap_or_else(|e| e.into_inner());
+            let (r, answers) = &mut *job;
+            let s = match answers {
+                Answers::Hits(h) => intersect_chunk(accel, r, traversal, fallback, h),
+                Answers::Blocked(b) => occluded_chunk(accel, r, traversal, fallback, b),
+            };
+            stats.add(&s);
         }
+        let cpu = start.zip(timing::thread_cpu_time()).map(|(a, b)| b.saturating_sub(a));
+        (stats, cpu)
     });
-    per_chunk.iter().fold(TraceStats::default(), |mut a, s| {
-        a.add(s);
-        a
-    })
+    per_worker.into_iter().fold(
+        (TraceStats::default(), Some(Duration::ZERO)),
+        |(mut a, c), (s, t)| {
+            a.add(&s);
+            (a, c.zip(t).map(|(c, t)| c + t))
+        },
+    )
 }
 
 // Packets take the rays in slice order, W at a time; CHUNK is a multiple of 16, so only the
@@ -557,14 +587,17 @@ pub fn time_trace(
     reps: usize,
 ) -> (Timing, TraceTotals) {
     let mut out = TraceOutputs::new(set, rays.len());
-    let stats = trace_once(accel, rays, set, traversal, fallback, pool, &mut out);
+    let (stats, _) = trace_once(accel, rays, traversal, fallback, pool, &mut out);
     let totals = out.totals(stats);
     let times = traces_per_rep(rays.len());
-    let mut timing = timing::time_repetitions(pool, reps, || {
+    let mut timing = timing::time_repetitions(pool.current_num_threads(), reps, || {
+        let mut cpu = Some(Duration::ZERO);
         for _ in 0..times {
-            let again = trace_once(accel, rays, set, traversal, fallback, pool, &mut out);
+            let (again, c) = trace_once(accel, rays, traversal, fallback, pool, &mut out);
             debug_assert_eq!(again, stats);
+            cpu = cpu.zip(c).map(|(a, b)| a + b);
         }
+        cpu
     });
     timing.best /= times as u32;
     timing.best_wall /= times as u32;

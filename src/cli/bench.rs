@@ -47,8 +47,9 @@ pub struct BenchArgs {
           value_parser = |s: &str| parse_in_range("--packet-fallback", s, 0, 8))]
     fallback: Option<u32>,
     /// Timed repetitions after a warm-up; the best counts. A set under 400k rays is traced
-    /// ceil(400k / rays) times per repetition, and a repetition whose threads lost more than 3%
-    /// of their CPU to other processes is made again (at most 2N in all), as the peer harness
+    /// ceil(400k / rays) times per repetition, and a repetition whose threads traced for less
+    /// than 97% of threads x its wall time (taken away by other processes, or idle before or
+    /// after their share of the rays) is made again (at most 2N in all), as the peer harness
     /// does
     #[arg(long, value_name = "N", default_value = "5",
           value_parser = |s: &str| parse_in_range("--reps", s, 1, 10_000).map(|n| n as usize))]
