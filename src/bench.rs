@@ -357,7 +357,9 @@ impl TraceOutputs {
     }
 
     /// The answer buffers cut into `CHUNK`-sized jobs beside their rays, each behind its own
-    /// lock so that whichever worker claims a job can fill it.
+    /// lock so that whichever worker claims a job can fill it. Made by each trace, inside the
+    /// clock: one allocation of a few hundred small entries, where the harness shares its one
+    /// output array through a raw pointer instead.
     fn jobs<'a>(&'a mut self, rays: &'a [Ray]) -> Vec<Mutex<Job<'a>>> {
         let hits = self.hits.chunks_mut(CHUNK).map(Answers::Hits);
         let blocked = self.blocked.chunks_mut(CHUNK).map(Answers::Blocked);
