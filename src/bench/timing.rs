@@ -9,9 +9,10 @@
 //! rule to its own repetitions (`Repetitions`), so that its figures and the harness's come from
 //! one estimator. The CPU time is counted as the harness counts it: each tracing thread's, from
 //! when it starts taking rays to when it runs out (`bench::trace_once`). Time a thread spends
-//! waiting to start, or idle after the last chunk, is in the wall time only, so on two threads a
-//! short repetition often falls short of the share for that reason alone, as the harness's own
-//! do; then both report the CPU-time estimate.
+//! waiting to start, or idle after its last chunk, is in the wall time only, so a repetition can
+//! fall short of the share without any preemption. (The harness starts its threads for every
+//! trace; 174 of its 288 two-thread Embree figures in the seventeenth session's runs were
+//! CPU-time estimates, 1 of our 192: PERF.md, "Against the peers".)
 
 use std::time::{Duration, Instant};
 
