@@ -393,7 +393,7 @@ impl Fnv1a {
     }
 }
 
-/// Traces `rays` once with `threads` threads (a pool the caller made), writing every ray's
+/// Traces `rays` once on every worker of `pool` (made by the caller), writing every ray's
 /// answer to `out` (made by `TraceOutputs::new` for this set and ray count); returns the
 /// counters and the CPU time the workers spent tracing (`None` where a thread's CPU time cannot
 /// be read). Only this is timed: the checksums come from `out` afterwards.
@@ -430,13 +430,9 @@ pub(crate) fn trace_once(
         let cpu = start.zip(timing::thread_cpu_time()).map(|(a, b)| b.saturating_sub(a));
         (stats, cpu)
     });
-    per_worker.into_iter().fold(
-        (TraceStats::default(), Some(Duration::ZERO)),
-        |(mut a, c), (s, t)| {
-            a.add(&s);
-            (a, c.zip(t).map(|(c, t)| c + t))
-        },
-    )
+    let mut stats = TraceStats::default();
+    per_worker.iter().for_each(|(s, _)| stats.add(s));
+    (stats, per_worker.iter().map(|&(_, cpu)| cpu).sum())
 }
 
 // Packets take the rays in slice order, W at a time; CHUNK is a multiple of 16, so only the
@@ -593,13 +589,13 @@ pub fn time_trace(
     let totals = out.totals(stats);
     let times = traces_per_rep(rays.len());
     let mut timing = timing::time_repetitions(pool.current_num_threads(), reps, || {
-        let mut cpu = Some(Duration::ZERO);
-        for _ in 0..times {
-            let (again, c) = trace_once(accel, rays, traversal, fallback, pool, &mut out);
-            debug_assert_eq!(again, stats);
-            cpu = cpu.zip(c).map(|(a, b)| a + b);
-        }
-        cpu
+        (0..times)
+            .map(|_| {
+                let (again, cpu) = trace_once(accel, rays, traversal, fallback, pool, &mut out);
+                debug_assert_eq!(again, stats);
+                cpu
+            })
+            .sum()
     });
     timing.best /= times as u32;
     timing.best_wall /= times as u32;
