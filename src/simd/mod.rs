@@ -38,8 +38,10 @@ pub trait SimdF32:
     fn splat(x: f32) -> Self;
     /// The first `W` values of `s` (`s.len() >= W`).
     fn load(s: &[f32]) -> Self;
-    /// The value of lane `i` (`i < W`).
-    fn lane(self, i: usize) -> f32;
+    /// The value of lane `i` (`i < W`). By reference, so that a lane of a vector in memory
+    /// (a packet's terms) is one load: taken by value, each vector was first copied to the
+    /// stack (PERF.md, "The packets' hand-over reads lanes in place").
+    fn lane(&self, i: usize) -> f32;
     /// Writes the lanes to the first `W` values of `out` (`out.len() >= W`).
     fn store(self, out: &mut [f32]);
     /// The mask of lanes where `self == b`.
@@ -169,7 +171,7 @@ macro_rules! impl_simd_f32 {
                 <$t as LaneMemory>::load_lanes(s)
             }
             #[inline(always)]
-            fn lane(self, i: usize) -> f32 {
+            fn lane(&self, i: usize) -> f32 {
                 self.as_array()[i]
             }
             #[inline(always)]
@@ -490,7 +492,7 @@ mod halves {
             F32x16 { lo: f32x8::load(s), hi: f32x8::load(&s[8..]) }
         }
         #[inline(always)]
-        fn lane(self, i: usize) -> f32 {
+        fn lane(&self, i: usize) -> f32 {
             if i < 8 {
                 self.lo.as_array()[i]
             } else {
