@@ -427,8 +427,7 @@ pub(crate) fn trace_once(
             };
             stats.add(&s);
         }
-        let cpu = start.zip(timing::thread_cpu_time()).map(|(a, b)| b.saturating_sub(a));
-        (stats, cpu)
+        (stats, timing::thread_cpu_time_since(start))
     });
     let mut stats = TraceStats::default();
     per_worker.iter().for_each(|(s, _)| stats.add(s));

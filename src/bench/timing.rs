@@ -137,6 +137,12 @@ pub fn time_repetitions(
     reps.timing()
 }
 
+/// The calling thread's CPU time since `start` (an earlier `thread_cpu_time()` of the same
+/// thread); `None` where either reading is unknown.
+pub(crate) fn thread_cpu_time_since(start: Option<Duration>) -> Option<Duration> {
+    start.zip(thread_cpu_time()).map(|(a, b)| b.saturating_sub(a))
+}
+
 /// The calling thread's CPU time so far.
 #[cfg(unix)]
 pub(crate) fn thread_cpu_time() -> Option<Duration> {
@@ -213,7 +219,7 @@ mod tests {
             let per_worker = pool.broadcast(|_| {
                 let start = thread_cpu_time();
                 spin(ms(20));
-                start.zip(thread_cpu_time()).map(|(a, b)| b - a)
+                thread_cpu_time_since(start)
             });
             let cpu = per_worker.into_iter().sum::<Option<Duration>>();
             seen.push((cpu, t0.elapsed()));
