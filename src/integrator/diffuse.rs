@@ -1,13 +1,15 @@
-//! Light-sampling vertices on diffuse surfaces, `LANES` paths at a time.
+//! Light-sampling vertices on diffuse and microfacet surfaces, `LANES` paths at a time.
 //!
 //! Most course scenes are diffuse surfaces under area, point, directional or sky lights. Shaded one
 //! vertex after another (`path::shade_hit`), such a vertex is a chain of dependent square roots,
 //! divisions and compares, and shading was half of a render's time (PERF.md "Whole renders"). Here
 //! the same arithmetic runs over `LANES` vertices in SIMD lanes: each lane computes, operation for
 //! operation and in the same order, what `path::shade_hit` computes for
-//! `DirectLighting::LightSampling` at a `Material::Diffuse` vertex lit by any scene lights, so the
-//! images are bit-identical to the scalar path's (tests/lighting.rs), which stays for every other
-//! case.
+//! `DirectLighting::LightSampling` (or MIS with triangle emitters) at a `Material::Diffuse` or
+//! `Material::Microfacet` vertex lit by any scene lights, so the images are bit-identical to the
+//! scalar path's (tests/lighting.rs), which stays for every other case. The lights are sampled in
+//! lanes by `light_lanes`, the microfacet BSDF evaluated and sampled by `microfacet_lanes`; a
+//! chunk without microfacet vertices runs code without them (`shade_diffuse`).
 
 use std::f32::consts::FRAC_1_PI;
 
@@ -15,18 +17,20 @@ use super::diffuse_out::ray_records;
 pub use super::diffuse_out::{
     queue_all_lanes, queue_lane, BounceLanes, DiffuseOutputs, ShadowLanes,
 };
-use super::lights::{Rectangle, TriangleEmitter, CORNER_WEIGHT_FLOOR};
 use super::path::{DirectLighting, DrawLayout, RR_START_DEPTH};
 use super::RenderContext;
 use crate::geometry::prim;
 use crate::math::{flat_coordinates, Hit, Ray, Vec3};
 use crate::sampler::{DrawBatch, DRAW_BLOCK};
-use crate::scene::{Light, Scene, NORMALS_PER_TRIANGLE};
+use crate::scene::{Material, Scene, NORMALS_PER_TRIANGLE};
 use crate::simd::{gather16, SimdF32};
 
 use super::lane_math::{
-    gt, max, min, neg, normalize_or, offset_origin, ray_epsilon, sincos_turns, Frame, Lanes, V, V3,
+    cosine_hemisphere, gt, max, min, neg, normalize_or, offset_origin, ray_epsilon, Frame, Lanes,
+    V, V3,
 };
+use super::light_lanes::{sample_scene_light, sample_triangle_emitter, LightLanes};
+use super::microfacet_lanes::{self, MicrofacetLanes, MicrofacetParams};
 
 /// Vertices shaded together. Sixteen, not eight: a vertex's arithmetic is one long chain of
 /// dependent divisions and square roots, so its time goes by latency, and 16 lanes (one
@@ -68,6 +72,8 @@ pub struct DiffuseLanes {
     face_normal: [Lanes; 3],
     /// A triangle's vertex normals.
     normals: [[Lanes; 3]; 3],
+    /// The lanes whose surface is microfacet, and its parameters (their albedo is zero).
+    micro: MicrofacetParams,
 }
 
 fn put(a: &mut [Lanes; 3], l: usize, v: Vec3) {
@@ -87,6 +93,29 @@ impl DiffuseLanes {
     /// Whether all `LANES` lanes hold a vertex.
     pub fn is_full(&self) -> bool {
         self.len == LANES
+    }
+
+    /// Empties the lanes.
+    pub fn clear(&mut self) {
+        self.len = 0;
+        self.micro.mask = 0;
+    }
+
+    /// Loads a microfacet vertex (`material`) into the next free lane, as `push` does a
+    /// diffuse one (its albedo zero, its parameters in `micro`).
+    pub fn push_microfacet(
+        &mut self,
+        path: u32,
+        queue: usize,
+        ray: &Ray,
+        hit: &Hit,
+        throughput: Vec3,
+        material: &Material,
+    ) {
+        if let Material::Microfacet { alpha, eta, k } = *material {
+            self.micro.set(self.len, alpha, eta, k);
+            self.push(path, queue, ray, hit, throughput, Vec3::ZERO);
+        }
     }
 
     /// Loads a vertex into the next free lane: its path, its ray's queue index, the ray and hit,
@@ -121,6 +150,7 @@ impl DiffuseLanes {
             self.values[l] = self.values[0];
             self.albedo_z[l] = self.albedo_z[0];
         }
+        self.micro.pad(self.len);
     }
 
     /// The pushed rays' origins and directions, as lanes.
@@ -267,19 +297,6 @@ struct Vertex {
     used: V,
 }
 
-/// Light samples of `lights::LightSample`, lane by lane; `sampled` masks the lanes that have one.
-/// `finite`: whether the sampled points are at a finite distance (area and point lights), the
-/// same for every lane of one light.
-struct LightLanes {
-    finite: bool,
-    wi: V3,
-    dist: V,
-    li: V3,
-    pdf: V,
-    cos_light: V,
-    sampled: V,
-}
-
 /// Shades the vertices of `lanes` (reached by rays of depth `depth < max_depth`): their shadow
 /// rays and bounces into `out`, in the order the scalar path would queue them.
 pub fn shade_diffuse(
@@ -292,8 +309,30 @@ pub fn shade_diffuse(
     out: &mut DiffuseOutputs,
 ) {
     lanes.pad();
+    // A chunk without microfacet lanes runs code without them: testing for them at each use
+    // cost the diffuse chunks 1% of a CBbunny render's instructions.
+    if lanes.micro.mask == 0 {
+        shade_lanes::<false>(ctx, direct, depth, layout, draws, lanes, out);
+    } else {
+        shade_lanes::<true>(ctx, direct, depth, layout, draws, lanes, out);
+    }
+}
+
+/// `shade_diffuse`, with microfacet lanes when `MICRO`.
+#[inline(always)]
+fn shade_lanes<const MICRO: bool>(
+    ctx: &RenderContext,
+    direct: DirectLighting,
+    depth: u32,
+    layout: &DrawLayout,
+    draws: &DrawBatch,
+    lanes: &mut DiffuseLanes,
+    out: &mut DiffuseOutputs,
+) {
     lanes.load_surfaces(ctx.scene, ctx.triangle_normals);
     let v = vertex(lanes);
+    let micro = if MICRO { lanes.micro.lanes() } else { None };
+    let micro = micro.as_ref();
     // The chunk's numbers sit in one block of the batch (`[slot][coordinate][lane]`, the
     // chunk's queue entries in its lanes); lane l reads the block lane of its vertex, and in
     // queue order (nearly always) a coordinate's lanes are one vector load.
@@ -317,8 +356,8 @@ pub fn shade_diffuse(
         let n = if light.is_delta() { 1 } else { ctx.light_samples };
         let scale = V::splat(1.0 / n as f32);
         for _ in 0..n {
-            let ls = sample_scene_light(light, &v, number(slot, 0), number(slot, 1));
-            out.shadows.push(shadow_ray(ctx, &v, &ls, scale));
+            let ls = sample_scene_light(light, v.p, &v.frame, number(slot, 0), number(slot, 1));
+            out.shadows.push(shadow_ray(ctx, &v, micro, &ls, scale));
             slot += 1;
         }
     }
@@ -329,21 +368,24 @@ pub fn shade_diffuse(
             // `path::sample_emissive_geometry`: the power heuristic against BSDF sampling.
             let zero = V::splat(0.0);
             let wl = ls.wi.to_local(&v.frame);
-            let bsdf_pdf =
-                V::select(gt(v.wo.z, zero) & gt(wl.z, zero), wl.z * V::splat(FRAC_1_PI), zero);
+            let facing = gt(v.wo.z, zero) & gt(wl.z, zero);
+            let mut bsdf_pdf = V::select(facing, wl.z * V::splat(FRAC_1_PI), zero);
+            if let Some(m) = micro {
+                bsdf_pdf = V::select(m.mask, microfacet_lanes::pdf(m, v.wo, wl, facing), bsdf_pdf);
+            }
             let a = V::splat(n as f32) * ls.pdf;
             let w = V::select(
                 a.simd_eq(zero) & bsdf_pdf.simd_eq(zero),
                 zero,
                 a * a / (a * a + bsdf_pdf * bsdf_pdf),
             );
-            out.shadows.push(shadow_ray(ctx, &v, &ls, w / V::splat(n as f32)));
+            out.shadows.push(shadow_ray(ctx, &v, micro, &ls, w / V::splat(n as f32)));
         }
     }
     out.bounce.valid = 0;
     // As in `path::shade_hit`, MIS continues from the last vertex too (the BSDF half).
     if depth + 1 < ctx.max_depth || direct == DirectLighting::Mis {
-        continue_diffuse(ctx, depth, layout, &v, &number, &mut out.bounce);
+        continue_diffuse(ctx, depth, layout, &v, micro, &number, &mut out.bounce);
     }
 }
 
@@ -393,180 +435,23 @@ fn vertex(lanes: &DiffuseLanes) -> Vertex {
     }
 }
 
-/// `lights::sample_scene_light` at the lanes' vertices, for any kind of scene light.
-#[inline(always)]
-fn sample_scene_light(light: &Light, v: &Vertex, u0: V, u1: V) -> LightLanes {
-    let (zero, one, inf) = (V::splat(0.0), V::splat(1.0), V::splat(f32::INFINITY));
-    let p = v.p;
-    match *light {
-        Light::Area { position, direction, dim_x, dim_y, radiance } => sample_rectangle(
-            &Rectangle::new(position, direction, dim_x, dim_y),
-            radiance,
-            v,
-            u0,
-            u1,
-        ),
-        Light::Point { position, radiance } => {
-            let d = V3::splat(position).sub(p);
-            let dist = d.dot(d).sqrt();
-            LightLanes {
-                finite: true,
-                wi: d.div(dist),
-                dist,
-                li: V3::splat(radiance),
-                pdf: one,
-                cos_light: one,
-                sampled: gt(dist, zero),
-            }
-        }
-        Light::Directional { direction, radiance } => LightLanes {
-            finite: false,
-            wi: V3::splat(direction),
-            dist: inf,
-            li: V3::splat(radiance),
-            pdf: one,
-            cos_light: one,
-            sampled: V::from_bitmask(!0),
-        },
-        Light::Ambient { radiance } => {
-            // `bsdf::cosine_hemisphere` in the shading frame, as `math::orthonormal_basis`
-            // builds it around the shading normal.
-            let l = cosine_hemisphere(u0, u1);
-            let f = &v.frame;
-            let wi = f.t.scale(l.x).add(f.b.scale(l.y)).add(f.n.scale(l.z));
-            LightLanes {
-                finite: false,
-                wi,
-                dist: inf,
-                li: V3::splat(radiance),
-                pdf: l.z / V::splat(std::f32::consts::PI),
-                cos_light: one,
-                sampled: gt(wi.y, zero) & gt(l.z, zero),
-            }
-        }
-    }
-}
-
-/// `Rectangle::sample` lane by lane.
-#[inline(always)]
-fn sample_rectangle(r: &Rectangle, radiance: Vec3, v: &Vertex, u0: V, u1: V) -> LightLanes {
-    let (zero, one, half) = (V::splat(0.0), V::splat(1.0), V::splat(0.5));
-    let [w00, w10, w01, w11] = corner_weights(r, v.p, v.frame.n);
-    let (a, b, c, d) = (w00 + w01, w10 + w11, w00 + w10, w01 + w11);
-    let (s, t) = (sample_linear(u0, a, b), sample_linear(u1, c, d));
-    let weight = ((one - s) * a + s * b) * ((one - t) * c + t * d);
-    let norm = (half * (a + b)) * (half * (c + d));
-    let q = V3::splat(r.corner).add(V3::splat(r.dim_x).scale(s)).add(V3::splat(r.dim_y).scale(t));
-    let dv = q.sub(v.p);
-    let dist = dv.dot(dv).sqrt();
-    let wi = dv.div(dist);
-    let cos_l = neg(V3::splat(r.direction).dot(wi));
-    let area = V::splat(r.area);
-    LightLanes {
-        finite: true,
-        wi,
-        dist,
-        li: V3::splat(radiance),
-        pdf: weight * (dist * dist) / (norm * (area * cos_l)),
-        cos_light: cos_l,
-        sampled: gt(cos_l, zero) & gt(dist, zero) & gt(area, zero),
-    }
-}
-
-/// `Rectangle::corner_weights` lane by lane.
-#[inline(always)]
-fn corner_weights(r: &Rectangle, p: V3, n: V3) -> [V; 4] {
-    let zero = V::splat(0.0);
-    let c10 = r.corner + r.dim_x;
-    let v = [r.corner, c10, r.corner + r.dim_y, c10 + r.dim_y].map(|q| V3::splat(q).sub(p));
-    let r2 = v.map(|v| v.dot(v));
-    let one = V::splat(1.0);
-    let (i01, i23) = (one / (r2[0] * r2[1]), one / (r2[2] * r2[3]));
-    let inv = [r2[1] * i01, r2[0] * i01, r2[3] * i23, r2[2] * i23];
-    let w: [V; 4] = std::array::from_fn(|k| max(v[k].dot(n), zero) * inv[k] * inv[k]);
-    let largest = max(max(w[0], w[1]), max(w[2], w[3]));
-    let usable = gt(largest, zero) & largest.simd_lt(V::splat(f32::INFINITY));
-    let scale = one / largest;
-    let floor = V::splat(CORNER_WEIGHT_FLOOR);
-    w.map(|x| V::select(usable, max(x * scale, floor), one))
-}
-
-/// `lights::sample_linear` lane by lane.
-#[inline(always)]
-fn sample_linear(xi: V, a: V, b: V) -> V {
-    let x = xi * (a + b) / (a + ((V::splat(1.0) - xi) * a * a + xi * b * b).sqrt());
-    min(x, V::splat(1.0 - f32::EPSILON / 2.0))
-}
-
-/// `bsdf::cosine_hemisphere`, lane by lane.
-#[inline(always)]
-fn cosine_hemisphere(u1: V, u2: V) -> V3 {
-    let r = u1.sqrt();
-    let (sin_phi, cos_phi) = sincos_turns(u2);
-    V3 { x: r * cos_phi, y: r * sin_phi, z: max(V::splat(1.0) - u1, V::splat(0.0)).sqrt() }
-}
-
-/// `LightSet::sample_emitter` for triangle emitters: the pick lane by lane (an alias-table
-/// look-up), the point and its pdf in lanes.
-#[inline(always)]
-fn sample_triangle_emitter(ctx: &RenderContext, p: V3, u0: V, u1: V) -> LightLanes {
-    // Each lane's emitter as two 8-float records (zeros where none is picked), then lanes by
-    // two transposes: the 14 fields stored lane by lane made 224 scalar stores per batch.
-    let mut u0_rescaled: Lanes = [0.0; LANES];
-    let mut u0_lanes: Lanes = [0.0; LANES];
-    u0.store(&mut u0_lanes);
-    let mut picked = 0u32;
-    // Each record written once (a zeroed array first cost a 1 KiB memset per chunk).
-    let records: [[[f32; 8]; 2]; LANES] =
-        std::array::from_fn(|l| match ctx.lights.pick_triangle_emitter(u0_lanes[l]) {
-            Some((t, u)) => {
-                (u0_rescaled[l], picked) = (u, picked | 1 << l);
-                emitter_records(&t)
-            }
-            None => [[0.0; 8]; 2],
-        });
-    let [ax, ay, az, bx, by, bz, cx, cy] = V::columns8(LANES, |l| records[l][0]);
-    let [cz, rx, ry, rz, pick_pdf, area, _, _] = V::columns8(LANES, |l| records[l][1]);
-    let (a, b) = (V3 { x: ax, y: ay, z: az }, V3 { x: bx, y: by, z: bz });
-    let c = V3 { x: cx, y: cy, z: cz };
-    // `lights::sample_emitter_point` for a triangle.
-    let zero = V::splat(0.0);
-    let s = V::load(&u0_rescaled).sqrt();
-    let (b1, b2) = (V::splat(1.0) - s, u1 * s);
-    let (ab, ac) = (b.sub(a), c.sub(a));
-    let q = a.add(ab.scale(b1)).add(ac.scale(b2));
-    let nq = normalize_or(ab.cross(ac), V3::splat(Vec3::Y));
-    let d = q.sub(p);
-    let dist = d.dot(d).sqrt();
-    let wi = d.div(dist);
-    let cos_l = neg(nq.dot(wi));
-    LightLanes {
-        finite: true,
-        wi,
-        dist,
-        li: V3 { x: rx, y: ry, z: rz },
-        pdf: pick_pdf * dist * dist / (area * cos_l),
-        cos_light: cos_l,
-        sampled: V::from_bitmask(picked) & gt(cos_l, zero) & gt(dist, zero),
-    }
-}
-
-/// A triangle emitter's fields as two records of 8 floats (corners, then the third corner's
-/// z, radiance, pick pdf and area), so that lanes of emitters are made by two transposes.
-#[inline(always)]
-fn emitter_records(t: &TriangleEmitter) -> [[f32; 8]; 2] {
-    let (a, b, c, r) = (t.a, t.b, t.c, t.radiance);
-    [[a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y], [c.z, r.x, r.y, r.z, t.pick_pdf, t.area, 0.0, 0.0]]
-}
-
 /// `path::queue_shadow_ray`: the occlusion test for one light sample per lane.
 #[inline(always)]
-fn shadow_ray(ctx: &RenderContext, v: &Vertex, ls: &LightLanes, scale: V) -> ShadowLanes {
+fn shadow_ray(
+    ctx: &RenderContext,
+    v: &Vertex,
+    micro: Option<&MicrofacetLanes>,
+    ls: &LightLanes,
+    scale: V,
+) -> ShadowLanes {
     let zero = V::splat(0.0);
     let wl = ls.wi.to_local(&v.frame);
     let lit = gt(wl.z, zero) & gt(ls.wi.dot(v.ng), zero);
     let facing = gt(v.wo.z, zero) & gt(wl.z, zero);
-    let f = V3::select(facing, v.f, V3::splat(Vec3::ZERO));
+    let mut f = V3::select(facing, v.f, V3::splat(Vec3::ZERO));
+    if let Some(m) = micro {
+        f = V3::select(m.mask, microfacet_lanes::eval(m, v.wo, wl, facing), f);
+    }
     let contribution = v.throughput.mul(f).mul(ls.li).scale(wl.z * scale / ls.pdf);
     let useful = gt(contribution.max_element(), zero) & contribution.is_finite();
     let origin = offset_origin(v.p, v.ng, ls.wi, ctx.scene_epsilon);
@@ -588,7 +473,8 @@ fn shadow_ray(ctx: &RenderContext, v: &Vertex, ls: &LightLanes, scale: V) -> Sha
     s
 }
 
-/// `path::continue_path` for a diffuse vertex: a cosine-weighted bounce, with roulette.
+/// `path::continue_path` for a diffuse vertex (a cosine-weighted bounce) or a microfacet one
+/// (a Beckmann-sampled bounce), with roulette.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn continue_diffuse(
@@ -596,15 +482,25 @@ fn continue_diffuse(
     depth: u32,
     layout: &DrawLayout,
     v: &Vertex,
+    micro: Option<&MicrofacetLanes>,
     number: &impl Fn(usize, usize) -> V,
     out: &mut BounceLanes,
 ) {
     let (p, ng, frame, wo, throughput, used) = (v.p, v.ng, &v.frame, v.wo, v.throughput, v.used);
     let zero = V::splat(0.0);
     let (u1, u2) = (number(layout.bsdf, 0), number(layout.bsdf, 1));
-    let wi = cosine_hemisphere(u1, u2);
+    let mut wi = cosine_hemisphere(u1, u2);
+    let mut pdf = wi.z * V::splat(FRAC_1_PI);
     let mut valid = used & gt(wo.z, zero) & gt(wi.z, zero);
-    let mut t = throughput.mul(v.albedo);
+    let mut weight = v.albedo;
+    if let Some(m) = micro {
+        let s = microfacet_lanes::sample(m, wo, u1, u2);
+        wi = V3::select(m.mask, s.wi, wi);
+        pdf = V::select(m.mask, s.pdf, pdf);
+        valid = used & V::select(m.mask, s.valid, valid);
+        weight = V3::select(m.mask, s.weight, weight);
+    }
+    let mut t = throughput.mul(weight);
     if depth + 1 >= RR_START_DEPTH {
         let roulette = match layout.lobe {
             Some(k) => number(k, 1),
@@ -621,5 +517,5 @@ fn continue_diffuse(
     out.valid = valid.bitmask();
     out.rays = ray_records(origin, dir, zero, V::splat(f32::INFINITY));
     t.store(&mut out.throughput);
-    (wi.z * V::splat(FRAC_1_PI)).store(&mut out.pdf);
+    pdf.store(&mut out.pdf);
 }

@@ -159,6 +159,14 @@ pub(super) fn sincos_turns(u: V) -> (V, V) {
     (V::select(neg_sin, neg(s), s), V::select(neg_cos, neg(c), c))
 }
 
+/// `bsdf::cosine_hemisphere`, lane by lane.
+#[inline(always)]
+pub(super) fn cosine_hemisphere(u1: V, u2: V) -> V3 {
+    let r = u1.sqrt();
+    let (sin_phi, cos_phi) = sincos_turns(u2);
+    V3 { x: r * cos_phi, y: r * sin_phi, z: max(V::splat(1.0) - u1, V::splat(0.0)).sqrt() }
+}
+
 /// The spawn-point offset of `RenderContext::ray_epsilon`, per lane.
 #[inline(always)]
 pub(super) fn ray_epsilon(p: V3, scene_epsilon: f32) -> V {

@@ -12,7 +12,9 @@ mod context;
 pub mod diffuse;
 mod diffuse_out;
 mod lane_math;
+mod light_lanes;
 pub mod lights;
+mod microfacet_lanes;
 mod path;
 mod queues;
 
@@ -52,7 +54,7 @@ impl Integrator {
         }
     }
 
-    /// Whether vertices on diffuse surfaces go through `diffuse::shade_diffuse`, `LANES` at
+    /// Whether vertices on diffuse and microfacet surfaces go through `diffuse::shade_diffuse`, `LANES` at
     /// a time, instead of `shade_hit` (see `diffuse::applies`).
     pub fn shades_diffuse_in_lanes(&self, ctx: &RenderContext) -> bool {
         match *self {

@@ -33,10 +33,10 @@ pub struct ShadeScratch {
 
 /// Shades every queued ray's hit. The random numbers of all vertices are drawn first, in one
 /// pass (`DrawBatch`). Then the queue goes by in chunks of `LANES`: where the integrator allows
-/// it, the chunk's diffuse vertices are shaded together in SIMD lanes (`integrator::diffuse`),
-/// the others one by one, and every vertex's rays are queued in queue order, so the queues
-/// (and the image) are the same as if all were shaded one by one. Returns the number of
-/// vertices shaded in lanes.
+/// it, the chunk's diffuse and microfacet vertices are shaded together in SIMD lanes
+/// (`integrator::diffuse`), the others one by one, and every vertex's rays are queued in queue
+/// order, so the queues (and the image) are the same as if all were shaded one by one. Returns
+/// the number of vertices shaded in lanes.
 #[allow(clippy::too_many_arguments)]
 pub fn shade(
     ctx: &RenderContext,
@@ -57,7 +57,7 @@ pub fn shade(
         let chunk = start..(start + LANES).min(rays.len());
         scratch.entries.clear();
         scratch.surfaces.clear();
-        scratch.lanes.len = 0;
+        scratch.lanes.clear();
         for q in chunk.clone() {
             let (ray, path) = (&rays.rays[q], rays.path[q]);
             let entry = match &hits[q] {
@@ -84,6 +84,13 @@ pub fn shade(
                                     .shade_hit(ctx, depth, ray, &s, path, paths, numbers, out);
                             }
                             Entry::Miss
+                        }
+                        // Microfacet surfaces join the same lanes (the diffuse ones above take
+                        // the first arm, whose code stays as short as before).
+                        None if lanes_apply && matches!(material, Material::Microfacet { .. }) => {
+                            let throughput = paths.throughput[path as usize];
+                            scratch.lanes.push_microfacet(path, q, ray, hit, throughput, material);
+                            Entry::Lane
                         }
                         None if ctx.integrator.ignores_surface_hit(depth, ctx.max_depth) => {
                             Entry::Miss
