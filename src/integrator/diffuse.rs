@@ -72,7 +72,7 @@ pub struct DiffuseLanes {
     face_normal: [Lanes; 3],
     /// A triangle's vertex normals.
     normals: [[Lanes; 3]; 3],
-    /// The lanes whose surface is microfacet, and its parameters (their albedo is zero).
+    /// The lanes whose surface is microfacet, and their parameters (their albedo is zero).
     micro: MicrofacetParams,
 }
 
@@ -150,7 +150,6 @@ impl DiffuseLanes {
             self.values[l] = self.values[0];
             self.albedo_z[l] = self.albedo_z[0];
         }
-        self.micro.pad(self.len);
     }
 
     /// The pushed rays' origins and directions, as lanes.
