@@ -276,7 +276,7 @@ fn zero_light_samples_render_without_panicking() {
 /// MIS (lanes apply to every kind of scene light and to triangle emitters; emissive spheres
 /// under MIS stay scalar), at -m 1 and -m 5,
 /// with -l 3, with adaptive sampling, and the project's Cornell box whose mirror and glass
-/// vertices interleave with lane-shaded walls in one queue. The statistics (rays and traversal
+/// vertices share the lanes with its walls (`delta_lanes`). The statistics (rays and traversal
 /// counters) must agree too, so the queues held the same rays in the same order.
 #[test]
 fn diffuse_vertices_in_simd_lanes_give_the_same_image_as_one_by_one() {

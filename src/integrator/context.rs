@@ -51,7 +51,7 @@ pub struct RenderContext<'a> {
     pub sampler: SamplerKind,
     /// Packets for coherent queues (see `stages::Coherence`); `false`: single rays only.
     pub packets: bool,
-    /// Diffuse vertices in SIMD lanes where the integrator allows it (`stages::shade`).
+    /// Surface vertices in SIMD lanes where the integrator allows it (`stages::shade`).
     pub shading_lanes: bool,
     /// Smallest offset for spawned rays: 1e-5 of the scene's bounding-box diagonal.
     pub scene_epsilon: f32,

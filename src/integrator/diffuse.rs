@@ -1,15 +1,16 @@
-//! Light-sampling vertices on diffuse and microfacet surfaces, `LANES` paths at a time.
+//! Light-sampling vertices on diffuse, microfacet and specular surfaces, `LANES` paths at a time.
 //!
 //! Most course scenes are diffuse surfaces under area, point, directional or sky lights. Shaded one
 //! vertex after another (`path::shade_hit`), such a vertex is a chain of dependent square roots,
 //! divisions and compares, and shading was half of a render's time (PERF.md "Whole renders"). Here
 //! the same arithmetic runs over `LANES` vertices in SIMD lanes: each lane computes, operation for
 //! operation and in the same order, what `path::shade_hit` computes for
-//! `DirectLighting::LightSampling` (or MIS with triangle emitters) at a `Material::Diffuse` or
-//! `Material::Microfacet` vertex lit by any scene lights, so the images are bit-identical to the
-//! scalar path's (tests/lighting.rs), which stays for every other case. The lights are sampled in
-//! lanes by `light_lanes`, the microfacet BSDF evaluated and sampled by `microfacet_lanes`; a
-//! chunk without microfacet vertices runs code without them (`shade_diffuse`).
+//! `DirectLighting::LightSampling` (or MIS with triangle emitters) at a vertex on any surface but
+//! an emitter, lit by any scene lights, so the images are bit-identical to the scalar path's
+//! (tests/lighting.rs), which stays for every other case (hemisphere sampling, MIS with emissive
+//! spheres, emitters). The lights are sampled in lanes by `light_lanes`, the microfacet BSDF
+//! evaluated and sampled by `microfacet_lanes`, the mirror, glass and refraction BSDFs sampled by
+//! `delta_lanes`; a chunk runs code only for the kinds of surface it holds (`shade_diffuse`).
 
 use std::f32::consts::FRAC_1_PI;
 
@@ -25,6 +26,7 @@ use crate::sampler::{DrawBatch, DRAW_BLOCK};
 use crate::scene::{Material, Scene, NORMALS_PER_TRIANGLE};
 use crate::simd::{gather16, SimdF32};
 
+use super::delta_lanes::{self, DeltaParams};
 use super::lane_math::{
     cosine_hemisphere, gt, max, min, neg, normalize_or, offset_origin, ray_epsilon, Frame, Lanes,
     V, V3,
@@ -74,6 +76,8 @@ pub struct DiffuseLanes {
     normals: [[Lanes; 3]; 3],
     /// The lanes whose surface is microfacet, and their parameters (their albedo is zero).
     micro: MicrofacetParams,
+    /// The lanes whose surface is specular (mirror, glass, refraction), and their parameters.
+    delta: DeltaParams,
 }
 
 fn put(a: &mut [Lanes; 3], l: usize, v: Vec3) {
@@ -99,11 +103,13 @@ impl DiffuseLanes {
     pub fn clear(&mut self) {
         self.len = 0;
         self.micro.mask = 0;
+        self.delta.clear();
     }
 
-    /// Loads a microfacet vertex (`material`) into the next free lane, as `push` does a
-    /// diffuse one (its albedo zero, its parameters in `micro`).
-    pub fn push_microfacet(
+    /// Loads a microfacet or specular vertex (`material`) into the next free lane, as `push`
+    /// does a diffuse one (its albedo zero, its parameters in `micro` or `delta`). Emitters
+    /// are not shaded in lanes: false, and nothing is loaded.
+    pub fn push_other(
         &mut self,
         path: u32,
         queue: usize,
@@ -111,11 +117,18 @@ impl DiffuseLanes {
         hit: &Hit,
         throughput: Vec3,
         material: &Material,
-    ) {
-        if let Material::Microfacet { alpha, eta, k } = *material {
-            self.micro.set(self.len, alpha, eta, k);
+    ) -> bool {
+        let loaded = match *material {
+            Material::Microfacet { alpha, eta, k } => {
+                self.micro.set(self.len, alpha, eta, k);
+                true
+            }
+            _ => self.delta.set(self.len, material),
+        };
+        if loaded {
             self.push(path, queue, ray, hit, throughput, Vec3::ZERO);
         }
+        loaded
     }
 
     /// Loads a vertex into the next free lane: its path, its ray's queue index, the ray and hit,
@@ -294,6 +307,8 @@ struct Vertex {
     f: V3,
     /// The lanes that hold vertices.
     used: V,
+    /// The lanes that hold vertices with a smooth lobe (not specular): they sample lights.
+    smooth: V,
 }
 
 /// Shades the vertices of `lanes` (reached by rays of depth `depth < max_depth`): their shadow
@@ -308,18 +323,21 @@ pub fn shade_diffuse(
     out: &mut DiffuseOutputs,
 ) {
     lanes.pad();
-    // A chunk without microfacet lanes runs code without them: testing for them at each use
+    // A chunk runs code for the materials it has: testing for microfacet lanes at each use
     // cost the diffuse chunks 1% of a CBbunny render's instructions.
-    if lanes.micro.mask == 0 {
-        shade_lanes::<false>(ctx, direct, depth, layout, draws, lanes, out);
-    } else {
-        shade_lanes::<true>(ctx, direct, depth, layout, draws, lanes, out);
-    }
+    let (d, m) = (lanes.delta.bits() != 0, lanes.micro.mask != 0);
+    let shade = match (m, d) {
+        (false, false) => shade_lanes::<false, false>,
+        (true, false) => shade_lanes::<true, false>,
+        (false, true) => shade_lanes::<false, true>,
+        (true, true) => shade_lanes::<true, true>,
+    };
+    shade(ctx, direct, depth, layout, draws, lanes, out);
 }
 
-/// `shade_diffuse`, with microfacet lanes when `MICRO`.
+/// `shade_diffuse`, with microfacet lanes when `MICRO` and specular ones when `DELTA`.
 #[inline(always)]
-fn shade_lanes<const MICRO: bool>(
+fn shade_lanes<const MICRO: bool, const DELTA: bool>(
     ctx: &RenderContext,
     direct: DirectLighting,
     depth: u32,
@@ -329,7 +347,7 @@ fn shade_lanes<const MICRO: bool>(
     out: &mut DiffuseOutputs,
 ) {
     lanes.load_surfaces(ctx.scene, ctx.triangle_normals);
-    let v = vertex(lanes);
+    let v = vertex(lanes, if DELTA { lanes.delta.bits() } else { 0 });
     let micro = if MICRO { lanes.micro.lanes() } else { None };
     let micro = micro.as_ref();
     // The chunk's numbers sit in one block of the batch (`[slot][coordinate][lane]`, the
@@ -383,8 +401,12 @@ fn shade_lanes<const MICRO: bool>(
     }
     out.bounce.valid = 0;
     // As in `path::shade_hit`, MIS continues from the last vertex too (the BSDF half).
-    if depth + 1 < ctx.max_depth || direct == DirectLighting::Mis {
-        continue_diffuse(ctx, depth, layout, &v, micro, &number, &mut out.bounce);
+    // Specular vertices continue at the last depth too (`path::shade_hit`).
+    let smooth_continues = depth + 1 < ctx.max_depth || direct == DirectLighting::Mis;
+    if smooth_continues || DELTA {
+        let delta = if DELTA { Some(&lanes.delta) } else { None };
+        let kinds = (micro, delta, smooth_continues);
+        continue_diffuse(ctx, depth, layout, &v, kinds, &number, &mut out.bounce);
     }
 }
 
@@ -409,17 +431,26 @@ fn surface(lanes: &DiffuseLanes, origin: V3, dir: V3, hit: &PushedValues) -> (V3
 
 /// The vertex of `path::shade_hit`: normals turned towards the viewer, the shading frame.
 #[inline(always)]
-fn vertex(lanes: &DiffuseLanes) -> Vertex {
+fn vertex(lanes: &DiffuseLanes, delta: u32) -> Vertex {
     let zero = V::splat(0.0);
     let (origin, dir) = lanes.ray_lanes();
     let pushed = lanes.value_lanes();
     let neg_dir = V3 { x: neg(dir.x), y: neg(dir.y), z: neg(dir.z) };
     let (p, ng_s, ns_s) = surface(lanes, origin, dir, &pushed);
     let cos_out = neg(ng_s.dot(dir));
-    let sign = V::select(cos_out.simd_lt(zero), V::splat(-1.0), V::splat(1.0));
+    let mut sign = V::select(cos_out.simd_lt(zero), V::splat(-1.0), V::splat(1.0));
+    let mut facing_away = ns_s.scale(sign).dot(neg_dir).simd_le(zero);
+    // Glass and refraction keep the outward normals, so that the BSDF knows the side, and the
+    // interpolated one even where it faces away.
+    let transmissive = lanes.delta.transmissive() & delta;
+    if transmissive != 0 {
+        let t = V::from_bitmask(transmissive);
+        sign = V::select(t, V::splat(1.0), sign);
+        facing_away = V::select(t, zero, facing_away);
+    }
     let ng = ng_s.scale(sign);
     let ns = ns_s.scale(sign);
-    let ns = V3::select(ns.dot(neg_dir).simd_le(zero), ng, ns);
+    let ns = V3::select(facing_away, ng, ns);
     let frame = Frame::new(ns);
     let wo = neg_dir.to_local(&frame);
     Vertex {
@@ -431,6 +462,7 @@ fn vertex(lanes: &DiffuseLanes) -> Vertex {
         albedo: pushed.albedo,
         f: pushed.albedo.scale(V::splat(FRAC_1_PI)),
         used: V::from_bitmask(lanes.used()),
+        smooth: V::from_bitmask(lanes.used() & !delta),
     }
 }
 
@@ -462,7 +494,7 @@ fn shadow_ray(
     } else {
         (ls.wi, V::splat(f32::INFINITY))
     };
-    let valid = v.used & ls.sampled & lit & useful & gt(t_max, zero);
+    let valid = v.smooth & ls.sampled & lit & useful & gt(t_max, zero);
     let mut s = ShadowLanes {
         valid: valid.bitmask(),
         rays: ray_records(origin, dir, V::splat(0.0), t_max),
@@ -472,8 +504,9 @@ fn shadow_ray(
     s
 }
 
-/// `path::continue_path` for a diffuse vertex (a cosine-weighted bounce) or a microfacet one
-/// (a Beckmann-sampled bounce), with roulette.
+/// `path::continue_path` for a diffuse vertex (a cosine-weighted bounce), a microfacet one (a
+/// Beckmann-sampled bounce, `kinds.0`) or a specular one (`kinds.1`), with roulette; the
+/// smooth lanes continue only if `kinds.2`.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn continue_diffuse(
@@ -481,10 +514,11 @@ fn continue_diffuse(
     depth: u32,
     layout: &DrawLayout,
     v: &Vertex,
-    micro: Option<&MicrofacetLanes>,
+    kinds: (Option<&MicrofacetLanes>, Option<&DeltaParams>, bool),
     number: &impl Fn(usize, usize) -> V,
     out: &mut BounceLanes,
 ) {
+    let (micro, delta, smooth_continues) = kinds;
     let (p, ng, frame, wo, throughput, used) = (v.p, v.ng, &v.frame, v.wo, v.throughput, v.used);
     let zero = V::splat(0.0);
     let (u1, u2) = (number(layout.bsdf, 0), number(layout.bsdf, 1));
@@ -498,6 +532,21 @@ fn continue_diffuse(
         pdf = V::select(m.mask, s.pdf, pdf);
         valid = used & V::select(m.mask, s.valid, valid);
         weight = V3::select(m.mask, s.weight, weight);
+    }
+    if !smooth_continues {
+        valid = zero;
+    }
+    if let Some(d) = delta {
+        let lobe = match layout.lobe {
+            Some(k) => number(k, 0),
+            None => zero,
+        };
+        let s = delta_lanes::sample(d, wo, lobe);
+        let specular = V::from_bitmask(d.bits());
+        wi = V3::select(specular, s.wi, wi);
+        pdf = V::select(specular, zero, pdf);
+        valid = V::select(specular, used & s.valid, valid);
+        weight = V3::select(specular, s.weight, weight);
     }
     let mut t = throughput.mul(weight);
     if depth + 1 >= RR_START_DEPTH {

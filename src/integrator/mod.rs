@@ -9,6 +9,7 @@
 
 pub mod bsdf;
 mod context;
+mod delta_lanes;
 pub mod diffuse;
 mod diffuse_out;
 mod lane_math;
@@ -54,8 +55,8 @@ impl Integrator {
         }
     }
 
-    /// Whether vertices on diffuse and microfacet surfaces go through `diffuse::shade_diffuse`, `LANES` at
-    /// a time, instead of `shade_hit` (see `diffuse::applies`).
+    /// Whether vertices on surfaces (all but emitters) go through `diffuse::shade_diffuse`,
+    /// `LANES` at a time, instead of `shade_hit` (see `diffuse::applies`).
     pub fn shades_diffuse_in_lanes(&self, ctx: &RenderContext) -> bool {
         match *self {
             Integrator::Path(direct) => diffuse::applies(ctx, direct),

@@ -19,7 +19,7 @@
 //!
 //! Shading a queue (`stages::shade`) starts with one pass that draws every random number its
 //! vertices may use (`sampler::DrawBatch`, vectorised). Then the queue goes by in chunks of 16:
-//! diffuse and microfacet vertices under light sampling or MIS are shaded together in SIMD lanes
+//! surface vertices under light sampling or MIS are shaded together in SIMD lanes
 //! (`integrator::diffuse`), the others one by one (`Integrator::shade_hit`), and each vertex's
 //! rays are queued in queue order, so the images are bit-identical either way.
 //!

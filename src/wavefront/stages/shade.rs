@@ -33,10 +33,10 @@ pub struct ShadeScratch {
 
 /// Shades every queued ray's hit. The random numbers of all vertices are drawn first, in one
 /// pass (`DrawBatch`). Then the queue goes by in chunks of `LANES`: where the integrator allows
-/// it, the chunk's diffuse and microfacet vertices are shaded together in SIMD lanes
-/// (`integrator::diffuse`), the others one by one, and every vertex's rays are queued in queue
-/// order, so the queues (and the image) are the same as if all were shaded one by one. Returns
-/// the number of vertices shaded in lanes.
+/// it, the chunk's surface vertices (diffuse, microfacet, specular) are shaded together in SIMD
+/// lanes (`integrator::diffuse`), the others one by one, and every vertex's rays are queued in
+/// queue order, so the queues (and the image) are the same as if all were shaded one by one.
+/// Returns the number of vertices shaded in lanes.
 #[allow(clippy::too_many_arguments)]
 pub fn shade(
     ctx: &RenderContext,
@@ -85,11 +85,18 @@ pub fn shade(
                             }
                             Entry::Miss
                         }
-                        // Microfacet surfaces join the same lanes (the diffuse ones above take
-                        // the first arm, whose code stays as short as before).
-                        None if lanes_apply && matches!(material, Material::Microfacet { .. }) => {
-                            let throughput = paths.throughput[path as usize];
-                            scratch.lanes.push_microfacet(path, q, ray, hit, throughput, material);
+                        // Microfacet and specular surfaces join the same lanes (the diffuse ones
+                        // above take the first arm, whose code stays as short as before).
+                        None if lanes_apply
+                            && scratch.lanes.push_other(
+                                path,
+                                q,
+                                ray,
+                                hit,
+                                paths.throughput[path as usize],
+                                material,
+                            ) =>
+                        {
                             Entry::Lane
                         }
                         None if ctx.integrator.ignores_surface_hit(depth, ctx.max_depth) => {
