@@ -4,7 +4,7 @@
 //! agree bit for bit (tests/lighting.rs). These vertices sample no lights (`path::shade_hit`:
 //! delta lobes have no smooth part), so a sample is all they need.
 
-use super::lane_math::{gt, max, neg, Lanes, V, V3};
+use super::lane_math::{gt, max, neg, per_lane, Lanes, V, V3};
 use crate::math::Vec3;
 use crate::scene::Material;
 use crate::simd::{Arith, SimdF32};
@@ -74,20 +74,6 @@ pub(super) struct DeltaSample {
     pub(super) valid: V,
 }
 
-/// `x.powi(n)` of the standard library in the lanes `bits`, zero in the others.
-#[inline(always)]
-fn powi_lanes(x: V, n: i32, bits: u32) -> V {
-    let (mut a, mut out) = (Lanes::default(), Lanes::default());
-    x.store(&mut a);
-    let mut b = bits;
-    while b != 0 {
-        let l = b.trailing_zeros() as usize;
-        b &= b - 1;
-        out[l] = a[l].powi(n);
-    }
-    V::load(&out)
-}
-
 /// `bsdf::sample` for the specular lanes of `d`, with the lobe choice's number `lobe`.
 #[inline(always)]
 pub(super) fn sample(d: &DeltaParams, wo: V3, lobe: V) -> DeltaSample {
@@ -104,8 +90,8 @@ pub(super) fn sample(d: &DeltaParams, wo: V3, lobe: V) -> DeltaSample {
         V3 { x: neg(eta) * wo.x, y: neg(eta) * wo.y, z: V::select(entering, neg(cos_t), cos_t) };
     // `bsdf::schlick(|wo.z|, ior)`, in the glass lanes.
     let glass = d.glass;
-    let r0 = powi_lanes((one - ior) / (one + ior), 2, glass);
-    let fresnel = r0 + (one - r0) * powi_lanes(one - cos_i, 5, glass);
+    let r0 = per_lane((one - ior) / (one + ior), glass, |x| x.powi(2));
+    let fresnel = r0 + (one - r0) * per_lane(one - cos_i, glass, |x| x.powi(5));
     let mirror_lanes = V::from_bitmask(d.mirror);
     let glass_lanes = V::from_bitmask(glass);
     let reflect = mirror_lanes | (glass_lanes & (tir | lobe.simd_lt(fresnel)));

@@ -7,7 +7,7 @@
 
 use std::f32::consts::{PI, TAU};
 
-use super::lane_math::{gt, max, Lanes, V, V3};
+use super::lane_math::{gt, max, per_lane, Lanes, V, V3};
 use crate::math::Vec3;
 use crate::simd::SimdF32;
 
@@ -55,22 +55,6 @@ impl MicrofacetParams {
             k: V3::load(&self.k),
         })
     }
-}
-
-/// `f(x)` of the standard library in the lanes `bits`, zero in the others. Only the
-/// microfacet lanes pay for the calls, which are most of this module's cost: a chunk of one
-/// microfacet vertex among diffuse ones costs about one scalar vertex more, not sixteen.
-#[inline(always)]
-fn per_lane(x: V, bits: u32, f: impl Fn(f32) -> f32) -> V {
-    let (mut a, mut out) = (Lanes::default(), Lanes::default());
-    x.store(&mut a);
-    let mut b = bits;
-    while b != 0 {
-        let l = b.trailing_zeros() as usize;
-        b &= b - 1;
-        out[l] = f(a[l]);
-    }
-    V::load(&out)
 }
 
 /// `bsdf::beckmann_d`.
