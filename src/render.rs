@@ -60,7 +60,7 @@ pub struct RenderConfig {
     /// Trace coherent queues (camera rays and their shadow rays) in 8-wide packets; `false`
     /// traces every ray alone. Both give bit-identical images (tests/traversal_agree.rs).
     pub packets: bool,
-    /// Shade light-sampling surface vertices in SIMD lanes (`integrator::diffuse`); `false`
+    /// Shade surface vertices in SIMD lanes (`integrator::diffuse`); `false`
     /// shades every vertex alone. Both give bit-identical images (tests/lighting.rs).
     pub shading_lanes: bool,
 }

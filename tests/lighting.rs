@@ -272,9 +272,9 @@ fn zero_light_samples_render_without_panicking() {
 }
 
 /// Diffuse vertices shaded sixteen at a time in SIMD lanes give the same bytes as shading every
-/// vertex alone, whatever else the scene holds: every course scene under light sampling and
-/// MIS (lanes apply to every kind of scene light and to triangle emitters; emissive spheres
-/// under MIS stay scalar), at -m 1 and -m 5,
+/// vertex alone, whatever else the scene holds: every course scene under light sampling, MIS
+/// (lanes apply to every kind of scene light and to triangle emitters; emissive spheres under
+/// MIS stay scalar) and uniform hemisphere sampling (`-H`: emission probes), at -m 1 and -m 5,
 /// with -l 3, with adaptive sampling, and the project's Cornell box whose mirror and glass
 /// vertices share the lanes with its walls (`delta_lanes`). The statistics (rays and traversal
 /// counters) must agree too, so the queues held the same rays in the same order.
@@ -292,8 +292,8 @@ fn diffuse_vertices_in_simd_lanes_give_the_same_image_as_one_by_one() {
         let kinds = light_kinds(&scene);
         let accel = Accel::build(&scene, AccelKind::Bvh);
         let runs = [(1, 1, None), (5, 3, None), (5, 1, Some((4, 0.05)))];
-        for ((m, l, adaptive), integrator) in runs.into_iter().flat_map(|r| [(r, LIGHT), (r, MIS)])
-        {
+        let integrators = |r| [(r, LIGHT), (r, MIS), (r, HEMISPHERE)];
+        for ((m, l, adaptive), integrator) in runs.into_iter().flat_map(integrators) {
             let config = |lanes| RenderConfig {
                 integrator,
                 width: 40,
@@ -342,7 +342,7 @@ fn diffuse_vertices_in_simd_lanes_give_the_same_image_as_one_by_one() {
 /// Microfacet vertices are shaded in the same lanes as diffuse ones (`microfacet_lanes`): the
 /// project's Cornell box with every diffuse surface made a rough or a smooth conductor, beside
 /// its mirror and glass, gives the same bytes and the same queues in lanes as one by one,
-/// under light sampling and MIS, at -m 1 and -m 5 (where roulette applies).
+/// under light sampling, MIS and hemisphere sampling, at -m 1 and -m 5 (where roulette applies).
 #[test]
 fn microfacet_vertices_in_simd_lanes_give_the_same_image_as_one_by_one() {
     use pathtracer::accel::{Accel, AccelKind};
@@ -361,7 +361,8 @@ fn microfacet_vertices_in_simd_lanes_give_the_same_image_as_one_by_one() {
     }
     assert!(made >= 3, "the Cornell box has {made} diffuse materials");
     let accel = Accel::build(&scene, AccelKind::Bvh);
-    for (m, integrator) in [(1, LIGHT), (5, LIGHT), (1, MIS), (5, MIS)] {
+    for (m, integrator) in [1, 5].into_iter().flat_map(|m| [(m, LIGHT), (m, MIS), (m, HEMISPHERE)])
+    {
         let config = |lanes| RenderConfig {
             integrator,
             width: 40,

@@ -108,12 +108,13 @@ pub fn cosine_hemisphere(u1: f32, u2: f32) -> Vec3 {
     Vec3::new(r * cos_phi, r * sin_phi, (1.0 - u1).max(0.0).sqrt())
 }
 
-/// Uniform direction over the +z hemisphere (pdf 1 / (2 pi)).
+/// Uniform direction over the +z hemisphere (pdf 1 / (2 pi)). The angle's sine and cosine by
+/// `sincos_turns`, as `cosine_hemisphere`, so that shading lanes repeat it bit for bit.
 pub fn uniform_hemisphere(u1: f32, u2: f32) -> Vec3 {
     let z = u1;
     let r = (1.0 - z * z).max(0.0).sqrt();
-    let phi = TAU * u2;
-    Vec3::new(r * phi.cos(), r * phi.sin(), z)
+    let (sin_phi, cos_phi) = crate::math::sincos_turns(u2);
+    Vec3::new(r * cos_phi, r * sin_phi, z)
 }
 
 /// The pdf of `uniform_hemisphere`, 1 / (2 pi) per steradian.

@@ -1,24 +1,26 @@
-//! Light-sampling vertices on diffuse, microfacet and specular surfaces, `LANES` paths at a time.
+//! Vertices on diffuse, microfacet and specular surfaces, `LANES` paths at a time.
 //!
 //! Most course scenes are diffuse surfaces under area, point, directional or sky lights. Shaded one
 //! vertex after another (`path::shade_hit`), such a vertex is a chain of dependent square roots,
 //! divisions and compares, and shading was half of a render's time (PERF.md "Whole renders"). Here
 //! the same arithmetic runs over `LANES` vertices in SIMD lanes: each lane computes, operation for
 //! operation and in the same order, what `path::shade_hit` computes for
-//! `DirectLighting::LightSampling` (or MIS with triangle emitters) at a vertex on any surface but
-//! an emitter, lit by any scene lights, so the images are bit-identical to the scalar path's
-//! (tests/lighting.rs), which stays for every other case (hemisphere sampling, MIS with emissive
-//! spheres, emitters). The lights are sampled in lanes by `light_lanes`, the microfacet BSDF
+//! `DirectLighting::LightSampling`, uniform hemisphere sampling (`-H`: emission probes) or MIS
+//! with triangle emitters at a vertex on any surface but an emitter, lit by any scene lights, so
+//! the images are bit-identical to the scalar path's (tests/lighting.rs), which stays for the
+//! other cases (MIS with emissive spheres, emitters). The lights are sampled in lanes by
+//! `light_lanes`, the microfacet BSDF
 //! evaluated and sampled by `microfacet_lanes`, the mirror, glass and refraction BSDFs sampled by
 //! `delta_lanes`; a chunk runs code only for the kinds of surface it holds (`shade_diffuse`).
 
 use std::f32::consts::FRAC_1_PI;
 
+use super::bsdf::UNIFORM_HEMISPHERE_PDF;
 use super::diffuse_out::ray_records;
 pub use super::diffuse_out::{
     queue_all_lanes, queue_lane, BounceLanes, DiffuseOutputs, ShadowLanes,
 };
-use super::path::{DirectLighting, DrawLayout, RR_START_DEPTH};
+use super::path::{hemisphere_draws, DirectLighting, DrawLayout, RR_START_DEPTH};
 use super::RenderContext;
 use crate::geometry::prim;
 use crate::math::{flat_coordinates, Hit, Ray, Vec3};
@@ -28,8 +30,8 @@ use crate::simd::{gather16, SimdF32};
 
 use super::delta_lanes::{self, DeltaParams};
 use super::lane_math::{
-    cosine_hemisphere, gt, max, min, neg, normalize_or, offset_origin, ray_epsilon, Frame, Lanes,
-    V, V3,
+    cosine_hemisphere, gt, max, min, neg, normalize_or, offset_origin, ray_epsilon,
+    uniform_hemisphere, Frame, Lanes, V, V3,
 };
 use super::light_lanes::{sample_scene_light, sample_triangle_emitter, LightLanes};
 use super::microfacet_lanes::{self, MicrofacetLanes, MicrofacetParams};
@@ -283,14 +285,14 @@ impl DiffuseLanes {
     }
 }
 
-/// Whether `shade_diffuse` can shade this integrator's vertices on diffuse surfaces: light
-/// sampling with any scene lights, or MIS with triangle emitters (and any scene lights).
+/// Whether `shade_diffuse` can shade this integrator's surface vertices: light sampling with
+/// any scene lights, hemisphere sampling, or MIS with triangle emitters (and any scene lights).
 pub fn applies(ctx: &RenderContext, direct: DirectLighting) -> bool {
     match direct {
         // Every kind of scene light has a lane sampler (`sample_scene_light`).
         DirectLighting::LightSampling => true,
         DirectLighting::Mis => ctx.lights.emitters_are_triangles(),
-        DirectLighting::Hemisphere => false,
+        DirectLighting::Hemisphere => true,
     }
 }
 
@@ -368,14 +370,23 @@ fn shade_lanes<const MICRO: bool, const DELTA: bool>(
         }
     };
     out.shadows.clear();
-    let mut slot = layout.light;
-    for light in &ctx.lights.scene_lights {
-        let n = if light.is_delta() { 1 } else { ctx.light_samples };
-        let scale = V::splat(1.0 / n as f32);
-        for _ in 0..n {
-            let ls = sample_scene_light(light, v.p, &v.frame, number(slot, 0), number(slot, 1));
-            out.shadows.push(shadow_ray(ctx, &v, micro, &ls, scale));
-            slot += 1;
+    out.probes = direct == DirectLighting::Hemisphere;
+    if out.probes {
+        let n = hemisphere_draws(ctx);
+        for k in layout.light..layout.emitter {
+            out.shadows.push(hemisphere_probe(ctx, &v, micro, number(k, 0), number(k, 1), n));
+        }
+    } else {
+        let mut slot = layout.light;
+        for light in &ctx.lights.scene_lights {
+            let n = if light.is_delta() { 1 } else { ctx.light_samples };
+            let scale = V::splat(1.0 / n as f32);
+            for _ in 0..n {
+                let (u1, u2) = (number(slot, 0), number(slot, 1));
+                let ls = sample_scene_light(light, v.p, &v.frame, u1, u2);
+                out.shadows.push(shadow_ray(ctx, &v, micro, &ls, scale));
+                slot += 1;
+            }
         }
     }
     if direct == DirectLighting::Mis && ctx.lights.has_emitters() {
@@ -501,6 +512,39 @@ fn shadow_ray(
         ..Default::default()
     };
     contribution.store(&mut s.contribution);
+    s
+}
+
+/// `path::queue_hemisphere_probes` for one of the `n` hemisphere draws per lane: a uniform
+/// direction, and the emission probe that adds what emissive geometry it sees.
+#[inline(always)]
+fn hemisphere_probe(
+    ctx: &RenderContext,
+    v: &Vertex,
+    micro: Option<&MicrofacetLanes>,
+    u1: V,
+    u2: V,
+    n: u32,
+) -> ShadowLanes {
+    let zero = V::splat(0.0);
+    let wi = uniform_hemisphere(u1, u2);
+    let facing = gt(v.wo.z, zero) & gt(wi.z, zero);
+    let mut f = V3::select(facing, v.f, V3::splat(Vec3::ZERO));
+    if let Some(m) = micro {
+        f = V3::select(m.mask, microfacet_lanes::eval(m, v.wo, wi, facing), f);
+    }
+    let weight = v.throughput.mul(f).scale(wi.z / V::splat(UNIFORM_HEMISPHERE_PDF * n as f32));
+    let f = &v.frame;
+    let dir = f.t.scale(wi.x).add(f.b.scale(wi.y)).add(f.n.scale(wi.z));
+    // Skipped where the scalar path's `<= 0` tests are true (a NaN passes them there too).
+    let skip = weight.max_element().simd_le(zero) | dir.dot(v.ng).simd_le(zero);
+    let origin = offset_origin(v.p, v.ng, dir, ctx.scene_epsilon);
+    let mut s = ShadowLanes {
+        valid: v.smooth.bitmask() & !skip.bitmask(),
+        rays: ray_records(origin, dir, zero, V::splat(f32::INFINITY)),
+        ..Default::default()
+    };
+    weight.store(&mut s.contribution);
     s
 }
 

@@ -72,6 +72,9 @@ impl BounceLanes {
 pub struct DiffuseOutputs {
     /// One `ShadowLanes` per light draw, in light-draw order.
     pub shadows: Vec<ShadowLanes>,
+    /// Whether `shadows` are emission probes (uniform hemisphere sampling), queued as
+    /// `ShadeOutputs::probes`, not shadow rays.
+    pub probes: bool,
     /// The continuation of every lane.
     pub bounce: BounceLanes,
 }
@@ -85,7 +88,8 @@ pub fn queue_all_lanes(
     paths: &mut PathState,
     queues: &mut ShadeOutputs,
 ) {
-    let (shadow, next) = (&mut *queues.shadow, &mut *queues.next);
+    let shadow = if out.probes { &mut *queues.probes } else { &mut *queues.shadow };
+    let next = &mut *queues.next;
     let count: u32 = out.shadows.iter().map(|s| s.valid.count_ones()).sum();
     shadow.reserve(count as usize);
     if let [s] = out.shadows.as_slice() {
@@ -125,7 +129,8 @@ pub fn queue_lane(
     paths: &mut PathState,
     queues: &mut ShadeOutputs,
 ) {
-    queue_shadows(out, l, path, queues.shadow);
+    let shadow = if out.probes { &mut *queues.probes } else { &mut *queues.shadow };
+    queue_shadows(out, l, path, shadow);
     if out.bounce.valid & (1 << l) != 0 {
         queue_bounce(&out.bounce, l, path, paths, queues.next);
     }

@@ -167,6 +167,14 @@ pub(super) fn cosine_hemisphere(u1: V, u2: V) -> V3 {
     V3 { x: r * cos_phi, y: r * sin_phi, z: max(V::splat(1.0) - u1, V::splat(0.0)).sqrt() }
 }
 
+/// `bsdf::uniform_hemisphere`, lane by lane.
+#[inline(always)]
+pub(super) fn uniform_hemisphere(u1: V, u2: V) -> V3 {
+    let r = max(V::splat(1.0) - u1 * u1, V::splat(0.0)).sqrt();
+    let (sin_phi, cos_phi) = sincos_turns(u2);
+    V3 { x: r * cos_phi, y: r * sin_phi, z: u1 }
+}
+
 /// `f(x)` of the standard library in the lanes `bits`, zero in the others. Only the
 /// lanes that need them pay for the calls (in `microfacet_lanes` most of the cost: a chunk of
 /// one microfacet vertex among diffuse ones then costs about one scalar vertex more, not

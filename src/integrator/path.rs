@@ -142,7 +142,7 @@ fn any_vertex_continues(direct: DirectLighting, ctx: &RenderContext, depth: u32)
 }
 
 /// Uniform hemisphere sampling takes `-l` directions per scene light (at least one light).
-fn hemisphere_draws(ctx: &RenderContext) -> u32 {
+pub(super) fn hemisphere_draws(ctx: &RenderContext) -> u32 {
     ctx.scene.lights.len().max(1) as u32 * ctx.light_samples
 }
 

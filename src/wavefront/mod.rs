@@ -19,9 +19,9 @@
 //!
 //! Shading a queue (`stages::shade`) starts with one pass that draws every random number its
 //! vertices may use (`sampler::DrawBatch`, vectorised). Then the queue goes by in chunks of 16:
-//! surface vertices under light sampling or MIS are shaded together in SIMD lanes
-//! (`integrator::diffuse`), the others one by one (`Integrator::shade_hit`), and each vertex's
-//! rays are queued in queue order, so the images are bit-identical either way.
+//! surface vertices (under MIS, where the emitters are triangles) are shaded together in SIMD
+//! lanes (`integrator::diffuse`), the others (emitters) one by one (`Integrator::shade_hit`),
+//! and each vertex's rays are queued in queue order, so the images are bit-identical either way.
 //!
 //! Queue sizes: a tile of 16 x 16 pixels with `spp` samples holds at most 256 x `spp` paths;
 //! samples are processed in batches of at most `SAMPLE_BATCH` per pixel, so a ray queue never
