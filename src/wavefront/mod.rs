@@ -326,10 +326,18 @@ fn trace_sample_batch(
             &mut ws.paths,
             &mut stats.trace,
         );
+        // Hemisphere probes leave the surfaces this queue hit, as the next depth's bounces do.
+        let probe_coherence = stages::Coherence::of_queue(
+            depth + 1,
+            ws.rays.len(),
+            camera_len,
+            ctx.packets,
+            ctx.accel.is_large(),
+        );
         stages::trace_emission_probes(
             ctx,
             &ws.probes,
-            stages::Coherence::Incoherent,
+            probe_coherence,
             &mut ws.hits,
             &mut ws.paths,
             &mut stats.trace,
