@@ -362,11 +362,13 @@ fn shade_lanes<const MICRO: bool, const DELTA: bool>(
     // that held 8% of this function's samples at `-m 1`.
     let in_order = block_lane.iter().enumerate().all(|(l, &b)| b == l);
     let number = |slot: usize, c: usize| -> V {
-        let row = &block[(2 * slot + c) * DRAW_BLOCK..(2 * slot + c + 1) * DRAW_BLOCK];
+        let start = (2 * slot + c) * DRAW_BLOCK;
+        let row: &[f32; DRAW_BLOCK] = block[start..start + DRAW_BLOCK].try_into().unwrap();
         if in_order {
             V::load(row)
         } else {
-            V::load(&std::array::from_fn::<f32, LANES, _>(|l| row[block_lane[l]]))
+            // The remainder tells the compiler what `block_lane` holds: no bounds checks.
+            V::load(&std::array::from_fn::<f32, LANES, _>(|l| row[block_lane[l] % DRAW_BLOCK]))
         }
     };
     out.shadows.clear();
