@@ -60,8 +60,8 @@ pub struct RenderConfig {
     /// Trace coherent queues (camera rays and their shadow rays) in 8-wide packets; `false`
     /// traces every ray alone. Both give bit-identical images (tests/traversal_agree.rs).
     pub packets: bool,
-    /// Shade surface vertices in SIMD lanes (`integrator::diffuse`); `false`
-    /// shades every vertex alone. Both give bit-identical images (tests/lighting.rs).
+    /// Shade surface vertices in SIMD lanes (`integrator::diffuse`); `false` shades every
+    /// vertex alone. Both give bit-identical images (tests/lighting.rs).
     pub shading_lanes: bool,
 }
 

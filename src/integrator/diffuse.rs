@@ -9,9 +9,9 @@
 //! with triangle emitters at a vertex on any surface but an emitter, lit by any scene lights, so
 //! the images are bit-identical to the scalar path's (tests/lighting.rs), which stays for the
 //! other cases (MIS with emissive spheres, emitters). The lights are sampled in lanes by
-//! `light_lanes`, the microfacet BSDF
-//! evaluated and sampled by `microfacet_lanes`, the mirror, glass and refraction BSDFs sampled by
-//! `delta_lanes`; a chunk runs code only for the kinds of surface it holds (`shade_diffuse`).
+//! `light_lanes`, the microfacet BSDF evaluated and sampled by `microfacet_lanes`, the mirror,
+//! glass and refraction BSDFs sampled by `delta_lanes`; a chunk runs code only for the kinds of
+//! surface it holds (`shade_diffuse`).
 
 use std::f32::consts::FRAC_1_PI;
 
@@ -536,8 +536,8 @@ fn hemisphere_probe(
         f = V3::select(m.mask, microfacet_lanes::eval(m, v.wo, wi, facing), f);
     }
     let weight = v.throughput.mul(f).scale(wi.z / V::splat(UNIFORM_HEMISPHERE_PDF * n as f32));
-    let f = &v.frame;
-    let dir = f.t.scale(wi.x).add(f.b.scale(wi.y)).add(f.n.scale(wi.z));
+    let frame = &v.frame;
+    let dir = frame.t.scale(wi.x).add(frame.b.scale(wi.y)).add(frame.n.scale(wi.z));
     // Skipped where the scalar path's `<= 0` tests are true (a NaN passes them there too).
     let skip = weight.max_element().simd_le(zero) | dir.dot(v.ng).simd_le(zero);
     let origin = offset_origin(v.p, v.ng, dir, ctx.scene_epsilon);
