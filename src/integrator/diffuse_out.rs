@@ -79,6 +79,15 @@ pub struct DiffuseOutputs {
     pub bounce: BounceLanes,
 }
 
+impl DiffuseOutputs {
+    /// The queue the light draws' rays go to (the probe queue for emission probes, else the
+    /// shadow queue), and the bounce queue.
+    fn light_queues<'a>(&self, q: &'a mut ShadeOutputs) -> (&'a mut ShadowQueue, &'a mut RayQueue) {
+        let light = if self.probes { &mut *q.probes } else { &mut *q.shadow };
+        (light, &mut *q.next)
+    }
+}
+
 /// Queues what every lane of a batch produced, as `queue_lane` for each lane in turn (the
 /// queues come out the same), for a chunk whose vertices all went through the lanes: the
 /// queue columns grow once per chunk, and only lanes with a ray are visited.
@@ -88,8 +97,7 @@ pub fn queue_all_lanes(
     paths: &mut PathState,
     queues: &mut ShadeOutputs,
 ) {
-    let shadow = if out.probes { &mut *queues.probes } else { &mut *queues.shadow };
-    let next = &mut *queues.next;
+    let (shadow, next) = out.light_queues(queues);
     let count: u32 = out.shadows.iter().map(|s| s.valid.count_ones()).sum();
     shadow.reserve(count as usize);
     if let [s] = out.shadows.as_slice() {
@@ -129,8 +137,7 @@ pub fn queue_lane(
     paths: &mut PathState,
     queues: &mut ShadeOutputs,
 ) {
-    let shadow = if out.probes { &mut *queues.probes } else { &mut *queues.shadow };
-    queue_shadows(out, l, path, shadow);
+    queue_shadows(out, l, path, out.light_queues(queues).0);
     if out.bounce.valid & (1 << l) != 0 {
         queue_bounce(&out.bounce, l, path, paths, queues.next);
     }
