@@ -26,6 +26,45 @@ pub const WIDTH: u32 = 800;
 /// The benchmark's image height.
 pub const HEIGHT: u32 = 600;
 
+/// The image whose pixel centres the primary rays go through. The standard sets use 800 x 600
+/// (BENCHMARK.md); `bench --frame` takes a render's own size. The course camera keeps the
+/// angle a pixel spans (SCENE_FORMAT.md, "Camera"), so a smaller frame is a tighter view: at
+/// 400 x 300 every CBbunny camera ray hits the box, at 800 x 600 two in three miss it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Frame {
+    /// Pixels across.
+    pub width: u32,
+    /// Pixels down.
+    pub height: u32,
+}
+
+impl Frame {
+    /// The frame of the standard ray sets.
+    pub const STANDARD: Frame = Frame { width: WIDTH, height: HEIGHT };
+
+    /// `WxH`, as records and `--frame` spell it.
+    pub fn name(self) -> String {
+        format!("{}x{}", self.width, self.height)
+    }
+
+    /// The frame `WxH` (each side 1 to 4096 pixels, so the sets stay under a gigabyte); anything else is an error that says
+    /// what was expected.
+    pub fn parse(s: &str) -> crate::Result<Frame> {
+        let side = |t: &str| t.parse::<u32>().ok().filter(|n| (1..=4096).contains(n));
+        match s.split_once(['x', 'X']).map(|(w, h)| (side(w), side(h))) {
+            Some((Some(width), Some(height))) => Ok(Frame { width, height }),
+            _ => Err(crate::Error::new(format!(
+                "bad frame '{s}' (expected WIDTHxHEIGHT, each 1 to 4096, e.g. 400x300)"
+            ))),
+        }
+    }
+
+    /// Pixels in the frame.
+    pub fn pixels(self) -> usize {
+        self.width as usize * self.height as usize
+    }
+}
+
 /// One of the three standard ray sets (`generate_ray_sets`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum RaySet {
@@ -97,10 +136,15 @@ pub fn triangles_only(scene: &Scene) -> Scene {
 /// ray about the geometric normal facing the incoming ray, and one shadow ray towards the
 /// benchmark light point.
 pub fn generate_ray_sets(scene: &Scene, accel: &Accel) -> RaySets {
-    let camera = Camera::new(&scene.camera, scene.bounds(), WIDTH, HEIGHT);
-    let mut primary = Vec::with_capacity((WIDTH * HEIGHT) as usize);
-    for y in 0..HEIGHT {
-        for x in 0..WIDTH {
+    generate_ray_sets_in(scene, accel, Frame::STANDARD)
+}
+
+/// The ray sets of [`generate_ray_sets`] with the primary rays through the pixels of `frame`.
+pub fn generate_ray_sets_in(scene: &Scene, accel: &Accel, frame: Frame) -> RaySets {
+    let camera = Camera::new(&scene.camera, scene.bounds(), frame.width, frame.height);
+    let mut primary = Vec::with_capacity(frame.pixels());
+    for y in 0..frame.height {
+        for x in 0..frame.width {
             primary.push(camera.ray_through_pixel(x as f32 + 0.5, y as f32 + 0.5));
         }
     }
@@ -283,13 +327,19 @@ pub struct TraceTotals {
     pub stats: TraceStats,
 }
 
-/// The order in which a traversal takes the rays of a set. Packets take primary rays of the
-/// full 800 x 600 frame in pixel blocks (4 x 4 for 16 lanes, 4 x 2 for 8, 2 x 2 for 4), as a renderer
-/// generates camera packets and as the peer harness feeds Embree's packets; a row of 8
-/// pixels is a wider, less coherent bundle. Other sets, and single rays, keep file order.
-/// Returns the rays reordered, or `None` to keep the order.
-pub fn packet_order(set: RaySet, traversal: Traversal, rays: &[Ray]) -> Option<Vec<Ray>> {
-    let (w, h) = (WIDTH as usize, HEIGHT as usize);
+/// The order in which a traversal takes the rays of a set. Packets take primary rays of a
+/// full frame (one ray per pixel of `frame`) in pixel blocks (4 x 4 for 16 lanes, 4 x 2 for 8,
+/// 2 x 2 for 4; cut short at the right and bottom edges), as a renderer generates camera
+/// packets and as the peer harness feeds Embree's packets; a row of 8 pixels is a wider, less
+/// coherent bundle. Other sets, and single rays, keep file order. Returns the rays reordered,
+/// or `None` to keep the order.
+pub fn packet_order(
+    set: RaySet,
+    traversal: Traversal,
+    rays: &[Ray],
+    frame: Frame,
+) -> Option<Vec<Ray>> {
+    let (w, h) = (frame.width as usize, frame.height as usize);
     let (bw, bh) = match traversal.width() {
         16 => (4, 4),
         8 => (4, 2),
@@ -302,8 +352,8 @@ pub fn packet_order(set: RaySet, traversal: Traversal, rays: &[Ray]) -> Option<V
     let mut out = Vec::with_capacity(rays.len());
     for by in (0..h).step_by(bh) {
         for bx in (0..w).step_by(bw) {
-            for y in by..by + bh {
-                out.extend_from_slice(&rays[y * w + bx..y * w + bx + bw]);
+            for y in by..(by + bh).min(h) {
+                out.extend_from_slice(&rays[y * w + bx..y * w + (bx + bw).min(w)]);
             }
         }
     }
@@ -489,6 +539,8 @@ pub struct BenchResult {
     pub threads: usize,
     /// How the rays were traversed.
     pub traversal: Traversal,
+    /// The frame of the primary rays (`Frame`).
+    pub frame: Frame,
     /// Build time of the acceleration structure, in milliseconds.
     pub build_ms: f64,
     /// How the trace was timed (`timing`); `mrays_per_s` follows from it.
@@ -529,6 +581,7 @@ impl BenchResult {
             rays: self.rays,
             threads: self.threads,
             traversal: self.traversal.name().into(),
+            frame: self.frame.name(),
             build_ms: self.build_ms,
             mrays_per_s: self.mrays_per_s(),
             timed_by: self.timing.timed_by.name().into(),
@@ -603,7 +656,46 @@ pub fn time_trace(
 
 #[cfg(test)]
 mod tests {
-    use super::traces_per_rep;
+    use super::{packet_order, traces_per_rep, Frame, RaySet, Traversal};
+    use crate::math::{Ray, Vec3};
+
+    #[test]
+    fn frames_parse_as_width_x_height() {
+        assert_eq!(Frame::parse("400x300").unwrap(), Frame { width: 400, height: 300 });
+        assert_eq!(Frame::parse("800X600").unwrap(), Frame::STANDARD);
+        assert_eq!(Frame::STANDARD.name(), "800x600");
+        for bad in ["", "400", "400x", "x300", "0x300", "400x0", "-4x3", "4097x1", "4x3x2", "ax3"] {
+            let e = Frame::parse(bad).unwrap_err();
+            assert!(e.message().starts_with(&format!("bad frame '{bad}'")), "{}", e.message());
+        }
+    }
+
+    /// Packets take a frame's primary rays in pixel blocks, cut short at the edges of a frame
+    /// the blocks do not divide: every ray once, each block's rays together.
+    #[test]
+    fn packet_order_takes_every_pixel_once_in_blocks() {
+        let frame = Frame { width: 7, height: 5 };
+        // Ray i starts at x = i, so the order can be read back.
+        let rays: Vec<Ray> = (0..frame.pixels())
+            .map(|i| Ray::segment(Vec3::new(i as f32, 0.0, 0.0), Vec3::Z, 0.0, 1.0))
+            .collect();
+        let order = |t| -> Vec<usize> {
+            let out = packet_order(RaySet::Primary, t, &rays, frame).expect("a whole frame");
+            out.iter().map(|r| r.origin.x as usize).collect()
+        };
+        let p8 = order(Traversal::Packet8);
+        assert_eq!(&p8[..8], &[0, 1, 2, 3, 7, 8, 9, 10]);
+        assert_eq!(&p8[8..14], &[4, 5, 6, 11, 12, 13]);
+        let mut sorted = p8.clone();
+        sorted.sort_unstable();
+        assert_eq!(sorted, (0..35).collect::<Vec<_>>());
+        let mut p16 = order(Traversal::Packet16);
+        p16.sort_unstable();
+        assert_eq!(p16, sorted);
+        assert!(packet_order(RaySet::Primary, Traversal::Single, &rays, frame).is_none());
+        assert!(packet_order(RaySet::Diffuse, Traversal::Packet8, &rays, frame).is_none());
+        assert!(packet_order(RaySet::Primary, Traversal::Packet8, &rays[1..], frame).is_none());
+    }
 
     #[test]
     fn small_sets_are_traced_to_the_harness_count() {

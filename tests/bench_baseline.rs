@@ -100,6 +100,8 @@ fn bad_baselines_and_tolerances_are_one_line_errors() {
         (vec!["--baseline", e], "no records"),
         (vec!["--tolerance", "5"], "--tolerance needs --baseline"),
         (vec!["--baseline", j, "--tolerance", "-1"], "--tolerance: expected a percentage"),
+        (vec!["--frame", "400"], "--frame: bad frame '400'"),
+        (vec!["--frame", "5000x10"], "--frame: bad frame '5000x10'"),
     ] {
         let out = bench(&args);
         let stderr = text(&out.stderr);
@@ -108,5 +110,33 @@ fn bad_baselines_and_tolerances_are_one_line_errors() {
         assert!(stderr.starts_with("error: ") && stderr.contains(want), "want '{want}': {stderr}");
         assert!(text(&out.stdout).is_empty(), "ran before failing");
     }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `--frame`: the primary rays go through the pixels of another image, the record says which,
+/// and a baseline of the standard frame does not answer for it.
+#[test]
+fn another_frame_is_another_ray_set() {
+    let dir = scratch_dir("frame");
+    let json = |extra: &[&str]| {
+        let out = bench(&[&["--json", "--ray-set", "primary"], extra].concat());
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        BenchRecord::parse_lines(&text(&out.stdout), "stdout").unwrap().remove(0)
+    };
+    let standard = json(&[]);
+    assert_eq!((standard.rays, standard.frame.as_str()), (800 * 600, "800x600"));
+    let small = json(&["--frame", "40x30"]);
+    assert_eq!((small.rays, small.frame.as_str()), (40 * 30, "40x30"));
+    // The course camera keeps a pixel's angle: the 40 x 30 view is the middle of the 800 x
+    // 600 one, where the box is, so more of its rays hit.
+    let share = |r: &BenchRecord| r.hits as f64 / r.rays as f64;
+    assert!(share(&small) > share(&standard), "{small:?} {standard:?}");
+    let base = edited(&dir, "standard.jsonl", &[standard], |_| {});
+    let out = bench(&["--ray-set", "primary", "--frame", "40x30", "--baseline", &base]);
+    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(
+        regression_lines(&out),
+        ["regression: scene cornell.dae, ray set primary, traversal single: missing from this run"]
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -20,6 +20,10 @@ pub struct BenchRecord {
     pub threads: usize,
     /// The traversal's name (`single`, `packet4`, `packet8` or `packet16`).
     pub traversal: String,
+    /// The frame of the primary rays, `WxH` (`bench --frame`); empty when read from a line
+    /// written before it was recorded, which means the standard 800x600.
+    #[serde(default)]
+    pub frame: String,
     /// Build time of the acceleration structure, in milliseconds.
     pub build_ms: f64,
     /// Millions of rays per second, by the peer harness's rule (`bench::timing`): the best
@@ -86,10 +90,32 @@ impl BenchRecord {
             .collect()
     }
 
-    /// "scene X, ray set Y, traversal Z": what a record measures.
-    fn key(&self) -> (&str, &str, &str) {
-        (&self.scene, &self.ray_set, &self.traversal)
+    /// Scene, ray set, traversal and frame: what a record measures.
+    fn key(&self) -> (&str, &str, &str, &str) {
+        (&self.scene, &self.ray_set, &self.traversal, self.frame_name())
     }
+
+    /// The frame of the primary rays; the standard one for a line that does not say.
+    fn frame_name(&self) -> &str {
+        if self.frame.is_empty() {
+            STANDARD_FRAME
+        } else {
+            &self.frame
+        }
+    }
+}
+
+/// The standard ray sets' frame (`bench::Frame::STANDARD`), as records spell it.
+const STANDARD_FRAME: &str = "800x600";
+
+/// "scene X, ray set Y, traversal Z" (and ", frame F" for a frame other than the standard one).
+fn describe(r: &BenchRecord) -> String {
+    let (scene, set, traversal, frame) = r.key();
+    let mut at = format!("scene {scene}, ray set {set}, traversal {traversal}");
+    if frame != STANDARD_FRAME {
+        at += &format!(", frame {frame}");
+    }
+    at
 }
 
 /// serde_json's message, with a missing field said as "no field NAME".
@@ -114,8 +140,7 @@ pub fn regressions(
     let tol = tolerance_pct / 100.0;
     let mut out = Vec::new();
     for b in baseline {
-        let (scene, set, traversal) = b.key();
-        let at = format!("scene {scene}, ray set {set}, traversal {traversal}");
+        let at = describe(b);
         let Some(n) = run.iter().find(|r| r.key() == b.key()) else {
             out.push(format!("{at}: missing from this run"));
             continue;
@@ -170,6 +195,7 @@ mod tests {
             rays: 100,
             threads: 1,
             traversal: traversal.into(),
+            frame: String::new(),
             build_ms: 1.0,
             mrays_per_s: 2.0,
             timed_by: "wall".into(),
@@ -221,5 +247,25 @@ mod tests {
         assert!(regressions(&base, &other, 0.0).is_empty());
         let r = regressions(&base, &base[..1], 0.0);
         assert_eq!(r, ["scene s.dae, ray set primary, traversal packet8: missing from this run"]);
+    }
+
+    /// A line without a frame is the standard frame; a record of another frame answers only
+    /// a baseline of that frame.
+    #[test]
+    fn records_of_other_frames_are_other_measurements() {
+        let base = [record("single", 1000, 50, 12.5)];
+        let mut standard = base.clone();
+        standard[0].frame = "800x600".into();
+        assert!(regressions(&base, &standard, 0.0).is_empty());
+        let mut small = base.clone();
+        small[0].frame = "400x300".into();
+        let r = regressions(&base, &small, 0.0);
+        assert_eq!(r, ["scene s.dae, ray set primary, traversal single: missing from this run"]);
+        let r = regressions(&small, &base, 0.0);
+        assert_eq!(
+            r,
+            ["scene s.dae, ray set primary, traversal single, frame 400x300: missing from this run"]
+        );
+        assert!(regressions(&small, &small, 0.0).is_empty());
     }
 }

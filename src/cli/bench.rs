@@ -6,7 +6,7 @@ use clap::Args;
 
 use super::{parse_byte_count, parse_in_range, parse_number};
 use pathtracer::accel::{Accel, AccelKind};
-use pathtracer::bench::{self, BenchRecord, BenchResult, RaySet, TimedBy, Traversal};
+use pathtracer::bench::{self, BenchRecord, BenchResult, Frame, RaySet, TimedBy, Traversal};
 use pathtracer::staged::Outputs;
 use pathtracer::{bail, scene, Error, Result};
 
@@ -32,6 +32,13 @@ pub struct BenchArgs {
     /// Also write PREFIX.{primary,diffuse,shadow}.rays
     #[arg(long, value_name = "PREFIX")]
     rays_out: Option<PathBuf>,
+    /// Primary rays through the pixel centres of a WxH image instead of the standard 800x600
+    /// (e.g. a render's -r 400 300, whose camera rays all hit the Cornell box: the course
+    /// camera keeps a pixel's angle, so a smaller image is a tighter view). With --rays-in, the
+    /// frame of a primary ray file, for the packets' pixel blocks
+    #[arg(long, value_name = "WxH", default_value = "800x600",
+          value_parser = |s: &str| Frame::parse(s).map_err(|e| e.context("bench: --frame")))]
+    frame: Frame,
     /// single|packet4|packet8|packet16, repeatable (default: all four; packet16 is 16 rays in
     /// one 512-bit register where the CPU has AVX-512, two 8-wide halves below it)
     #[arg(long = "traversal", value_name = "KIND",
@@ -94,7 +101,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
             bail!("--rays-in needs --ray-set: a ray file does not say what its rays want")
         }
         (None, only) => {
-            let generated = bench::generate_ray_sets(&scene, &accel);
+            let generated = bench::generate_ray_sets_in(&scene, &accel, a.frame);
             if let Some(prefix) = &a.rays_out {
                 // All three files or none.
                 let mut outputs = Outputs::new();
@@ -121,7 +128,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
     let mut results = Vec::new();
     for (set, rays) in &sets {
         for &traversal in &a.traversals {
-            let ordered = bench::packet_order(*set, traversal, rays);
+            let ordered = bench::packet_order(*set, traversal, rays, a.frame);
             let traced = ordered.as_deref().unwrap_or(rays);
             let (timing, totals) =
                 bench::time_trace(&accel, traced, *set, traversal, a.fallback, &pool, a.reps);
@@ -132,6 +139,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
                 rays: rays.len(),
                 threads: a.threads,
                 traversal,
+                frame: a.frame,
                 build_ms,
                 timing,
                 totals,
@@ -232,6 +240,9 @@ fn format_table(results: &[BenchResult]) -> String {
     if results.iter().any(|r| r.timing.timed_by == TimedBy::Cpu) {
         s += "* CPU-time estimate: fewer repetitions than --reps got their threads' share of the \
               CPU (the peer harness's rule)\n";
+    }
+    if let Some(r) = results.iter().find(|r| r.frame != Frame::STANDARD) {
+        s += &format!("frame: {} (primary rays; the standard sets use 800x600)\n", r.frame.name());
     }
     let isa = pathtracer::simd::isa::Isa::compiled();
     s += &format!("isa: {isa} (the {} build)\n", isa.target_cpu());
