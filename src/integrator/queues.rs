@@ -95,6 +95,13 @@ impl RayQueue {
         self.path.push(path);
     }
 
+    /// Queues ray `i` of `records` (`Ray::record`) for path `path[i]`, for every `i`, in
+    /// order: each column grows once.
+    pub fn push_records(&mut self, records: &[[f32; 8]], path: &[u32]) {
+        self.rays.extend(records.iter().map(Ray::from_record));
+        self.path.extend_from_slice(path);
+    }
+
     /// Queues `rays` for the consecutive paths `first_path`, `first_path + 1`, ...: each
     /// column grows once for the run.
     pub fn push_run(&mut self, rays: impl ExactSizeIterator<Item = Ray>, first_path: u32) {
@@ -147,6 +154,15 @@ impl ShadowQueue {
         self.rays.push(ray);
         self.radiance.push(radiance);
         self.path.push(path);
+    }
+
+    /// Queues ray `i` of `records` (`Ray::record`) with radiance `(r[i], g[i], b[i])` for path
+    /// `path[i]`, for every `i`, in order: each column grows once.
+    pub fn push_records(&mut self, records: &[[f32; 8]], [r, g, b]: [&[f32]; 3], path: &[u32]) {
+        self.rays.extend(records.iter().map(Ray::from_record));
+        let rgb = r.iter().zip(g).zip(b);
+        self.radiance.extend(rgb.map(|((&r, &g), &b)| Vec3::new(r, g, b)));
+        self.path.extend_from_slice(path);
     }
 
     /// The number of queued rays.
