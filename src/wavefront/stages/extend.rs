@@ -13,7 +13,11 @@ use crate::math::Hit;
 /// bit-identical hits, so the choice never changes the image.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Coherence {
+    /// Camera rays and the rays their hits make: packets of `CAMERA_PACKET` rays.
+    Camera,
+    /// Packets of `PACKET` rays.
     Coherent,
+    /// Single rays, in streams.
     Incoherent,
 }
 
@@ -35,10 +39,10 @@ impl Coherence {
             1 => !large_structure,
             _ => !large_structure && dense,
         };
-        if packets && coherent {
-            Coherence::Coherent
-        } else {
-            Coherence::Incoherent
+        match (packets && coherent, depth) {
+            (false, _) => Coherence::Incoherent,
+            (true, 0) => Coherence::Camera,
+            (true, _) => Coherence::Coherent,
         }
     }
 }
@@ -47,6 +51,12 @@ impl Coherence {
 /// build), 8 below it, where 16-ray packets are two halves and did not pay in renders
 /// (PERF.md, "One binary for every x86-64 CPU").
 pub const PACKET: usize = if cfg!(target_feature = "avx512f") { 16 } else { 8 };
+
+/// Packet width for camera rays and the shadow rays and probes of their hits: 16 rays in every
+/// build. A tile's queue holds a pixel's samples one after the other, so 16 neighbouring camera
+/// rays share nearly every node, and below AVX-512 the two 8-wide halves of a 16-ray packet
+/// still halve the per-packet work of 8-ray packets (PERF.md, "Whole renders").
+pub const CAMERA_PACKET: usize = 16;
 
 /// Finds the closest hit of each queued ray; `hits[i]` answers `rays.rays[i]`.
 pub fn extend(
@@ -57,14 +67,10 @@ pub fn extend(
     stats: &mut TraceStats,
 ) {
     hits.clear();
+    hits.resize(rays.len(), None);
     match coherence {
-        Coherence::Coherent => {
-            hits.resize(rays.len(), None);
-            ctx.accel.intersect_packets::<PACKET>(&rays.rays, hits, stats);
-        }
-        Coherence::Incoherent => {
-            hits.resize(rays.len(), None);
-            ctx.accel.intersect_stream(&rays.rays, hits, stats);
-        }
+        Coherence::Camera => ctx.accel.intersect_packets::<CAMERA_PACKET>(&rays.rays, hits, stats),
+        Coherence::Coherent => ctx.accel.intersect_packets::<PACKET>(&rays.rays, hits, stats),
+        Coherence::Incoherent => ctx.accel.intersect_stream(&rays.rays, hits, stats),
     }
 }

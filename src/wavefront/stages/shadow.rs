@@ -1,7 +1,7 @@
 //! Stage 4: any-hit queries for the shadow-ray queue; unblocked rays deliver their radiance.
 
 use super::super::{PathState, RenderContext, ShadowQueue};
-use super::extend::{Coherence, PACKET};
+use super::extend::{Coherence, CAMERA_PACKET, PACKET};
 use crate::accel::TraceStats;
 use crate::integrator::emission_seen;
 use crate::math::{Hit, Vec3};
@@ -21,6 +21,9 @@ pub fn trace_shadow_rays(
     blocked.clear();
     blocked.resize(shadow.len(), false);
     match coherence {
+        Coherence::Camera => {
+            ctx.accel.occluded_packets::<CAMERA_PACKET>(&shadow.rays, blocked, stats)
+        }
         Coherence::Coherent => ctx.accel.occluded_packets::<PACKET>(&shadow.rays, blocked, stats),
         Coherence::Incoherent => ctx.accel.occluded_stream(&shadow.rays, blocked, stats),
     }
@@ -47,6 +50,9 @@ pub fn trace_emission_probes(
     hits.clear();
     hits.resize(probes.len(), None);
     match coherence {
+        Coherence::Camera => {
+            ctx.accel.intersect_packets::<CAMERA_PACKET>(&probes.rays, hits, stats)
+        }
         Coherence::Coherent => ctx.accel.intersect_packets::<PACKET>(&probes.rays, hits, stats),
         Coherence::Incoherent => ctx.accel.intersect_stream(&probes.rays, hits, stats),
     }
