@@ -5,8 +5,8 @@ use crate::accel::TraceStats;
 use crate::math::Hit;
 
 /// How a queue's rays are traced. Camera rays of a tile (and their shadow rays) are coherent:
-/// neighbouring queue entries are samples of the same or adjacent pixels, so packets (`PACKET` rays)
-/// share most nodes. Bounces keep the queue order of their pixels, so while most paths of the
+/// neighbouring queue entries are samples of the same or adjacent pixels, so packets
+/// (`CAMERA_PACKET` rays) share most nodes. Bounces keep the queue order of their pixels, so while most paths of the
 /// tile are alive, neighbouring entries still start from nearby points and packets win on a
 /// cache-resident structure; once most have left the scene, neighbours come from pixels far
 /// apart and single rays (in streams) win. Packet and single-ray traversal return
@@ -47,15 +47,16 @@ impl Coherence {
     }
 }
 
-/// Packet width for coherent queues: 16 rays where one register holds them (the avx512
-/// build), 8 below it, where 16-ray packets are two halves and did not pay in renders
-/// (PERF.md, "One binary for every x86-64 CPU").
+/// Packet width for coherent bounce queues: 16 rays where one register holds them (the avx512
+/// build), 8 below it, where 16-ray packets are two halves and did not pay for bounces
+/// (PERF.md, "One binary for every x86-64 CPU", "Camera packets of 16 and whole-chunk
+/// queueing").
 pub const PACKET: usize = if cfg!(target_feature = "avx512f") { 16 } else { 8 };
 
 /// Packet width for camera rays and the shadow rays and probes of their hits: 16 rays in every
 /// build. A tile's queue holds a pixel's samples one after the other, so 16 neighbouring camera
-/// rays share nearly every node, and below AVX-512 the two 8-wide halves of a 16-ray packet
-/// still halve the per-packet work of 8-ray packets (PERF.md, "Whole renders").
+/// rays share nearly every node and one walk of the tree serves all of them, even as two 8-wide
+/// halves below AVX-512 (PERF.md, "Camera packets of 16 and whole-chunk queueing").
 pub const CAMERA_PACKET: usize = 16;
 
 /// Finds the closest hit of each queued ray; `hits[i]` answers `rays.rays[i]`.
