@@ -6,10 +6,10 @@ use crate::math::Hit;
 
 /// How a queue's rays are traced. Camera rays of a tile (and their shadow rays) are coherent:
 /// neighbouring queue entries are samples of the same or adjacent pixels, so packets
-/// (`CAMERA_PACKET` rays) share most nodes. Bounces keep the queue order of their pixels, so while most paths of the
-/// tile are alive, neighbouring entries still start from nearby points and packets win on a
-/// cache-resident structure; once most have left the scene, neighbours come from pixels far
-/// apart and single rays (in streams) win. Packet and single-ray traversal return
+/// (`CAMERA_PACKET` rays) share most nodes. Bounces keep the queue order of their pixels, so
+/// while most paths of the tile are alive, neighbouring entries still start from nearby points
+/// and packets (`PACKET` rays) win on a cache-resident structure; once most have left the
+/// scene, neighbours come from pixels far apart and single rays (in streams) win. Packet and single-ray traversal return
 /// bit-identical hits, so the choice never changes the image.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Coherence {
