@@ -11,10 +11,11 @@ use crate::scene::Material;
 /// How one queue entry of a chunk is shaded. Small on purpose: a chunk's surfaces for the
 /// scalar path wait in `ShadeScratch::surfaces`, so that the common lane entries do not move
 /// a whole `Surface` each.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Default)]
 enum Entry {
     /// Nothing more to do: the ray left the scene, its hit counts nothing, or it hit an emitter,
     /// which the walk has already shaded.
+    #[default]
     Miss,
     /// In the chunk's lanes, which reconstruct the surface themselves.
     Lane,
@@ -25,7 +26,8 @@ enum Entry {
 /// Scratch space of the shade stage, reused across depths and tiles.
 #[derive(Default)]
 pub struct ShadeScratch {
-    entries: Vec<Entry>,
+    /// How each entry of the chunk is shaded: `entries[i]` for queue entry `start + i`.
+    entries: [Entry; LANES],
     surfaces: Vec<Surface>,
     lanes: DiffuseLanes,
     lane_out: DiffuseOutputs,
@@ -55,12 +57,12 @@ pub fn shade(
     let mut in_lanes = 0;
     for start in (0..rays.len()).step_by(LANES) {
         let chunk = start..(start + LANES).min(rays.len());
-        scratch.entries.clear();
         scratch.surfaces.clear();
         scratch.lanes.clear();
-        for q in chunk.clone() {
-            let (ray, path) = (&rays.rays[q], rays.path[q]);
-            let entry = match &hits[q] {
+        let queued = rays.rays[chunk.clone()].iter().zip(&rays.path[chunk.clone()]);
+        for (i, ((ray, &path), hit)) in queued.zip(&hits[chunk.clone()]).enumerate() {
+            let q = start + i;
+            let entry = match hit {
                 None => Entry::Miss,
                 Some(hit) => {
                     let material =
@@ -109,7 +111,7 @@ pub fn shade(
                     }
                 }
             };
-            scratch.entries.push(entry);
+            scratch.entries[i] = entry;
         }
         in_lanes += scratch.lanes.len as u64;
         if let (true, Some(direct)) = (scratch.lanes.len > 0, ctx.integrator.direct_lighting()) {
