@@ -30,6 +30,8 @@ pub struct Frame {
 impl Frame {
     /// The frame of the standard ray sets.
     pub const STANDARD: Frame = Frame { width: WIDTH, height: HEIGHT };
+    /// The standard frame's `name`, for records that do not say theirs.
+    pub const STANDARD_NAME: &'static str = "800x600";
 
     /// `WxH`, as records and `--frame` spell it.
     pub fn name(self) -> String {
@@ -219,6 +221,7 @@ mod tests {
         assert_eq!(Frame::parse("400x300").unwrap(), Frame { width: 400, height: 300 });
         assert_eq!(Frame::parse("800X600").unwrap(), Frame::STANDARD);
         assert_eq!(Frame::STANDARD.name(), "800x600");
+        assert_eq!(Frame::STANDARD.name(), Frame::STANDARD_NAME);
         for bad in ["", "400", "400x", "x300", "0x300", "400x0", "-4x3", "4097x1", "4x3x2", "ax3"] {
             let e = Frame::parse(bad).unwrap_err();
             assert!(e.message().starts_with(&format!("bad frame '{bad}'")), "{}", e.message());

@@ -3,6 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::Frame;
 use crate::{Error, Result};
 
 /// One measurement of one ray set with one traversal, in the units of BENCHMARK.md.
@@ -98,21 +99,18 @@ impl BenchRecord {
     /// The frame of the primary rays; the standard one for a line that does not say.
     fn frame_name(&self) -> &str {
         if self.frame.is_empty() {
-            STANDARD_FRAME
+            Frame::STANDARD_NAME
         } else {
             &self.frame
         }
     }
 }
 
-/// The standard ray sets' frame (`bench::Frame::STANDARD`), as records spell it.
-const STANDARD_FRAME: &str = "800x600";
-
 /// "scene X, ray set Y, traversal Z" (and ", frame F" for a frame other than the standard one).
 fn describe(r: &BenchRecord) -> String {
     let (scene, set, traversal, frame) = r.key();
     let mut at = format!("scene {scene}, ray set {set}, traversal {traversal}");
-    if frame != STANDARD_FRAME {
+    if frame != Frame::STANDARD_NAME {
         at += &format!(", frame {frame}");
     }
     at

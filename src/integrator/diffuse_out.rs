@@ -126,8 +126,7 @@ pub fn queue_all_lanes(
     if b.valid == all {
         next.push_records(&b.rays[..n], &lanes.path[..n]);
         for (l, &path) in lanes.path[..n].iter().enumerate() {
-            paths.throughput[path as usize] = b.throughput(l);
-            paths.bsdf_pdf[path as usize] = b.pdf(l);
+            continue_path(b, l, path, paths);
         }
         return;
     }
@@ -180,7 +179,13 @@ fn queue_shadows(out: &DiffuseOutputs, l: usize, path: u32, shadow: &mut ShadowQ
 /// Lane `l`'s bounce (which it has): the path's new throughput and pdf, and its ray.
 #[inline(always)]
 fn queue_bounce(b: &BounceLanes, l: usize, path: u32, paths: &mut PathState, next: &mut RayQueue) {
+    continue_path(b, l, path, paths);
+    next.push(b.ray(l), path);
+}
+
+/// Path `path`'s throughput and pdf after lane `l`'s bounce.
+#[inline(always)]
+fn continue_path(b: &BounceLanes, l: usize, path: u32, paths: &mut PathState) {
     paths.throughput[path as usize] = b.throughput(l);
     paths.bsdf_pdf[path as usize] = b.pdf(l);
-    next.push(b.ray(l), path);
 }
