@@ -2,11 +2,13 @@
 //! the integrator.
 
 use super::super::{PathState, RayQueue, RenderContext, ShadeOutputs, Surface};
+use crate::geometry::prim;
 use crate::integrator::diffuse::{self, DiffuseLanes, DiffuseOutputs, LANES};
 use crate::integrator::surface_material;
 use crate::math::{Hit, Vec3};
 use crate::sampler::DrawBatch;
-use crate::scene::Material;
+use crate::scene::{Material, NORMALS_PER_TRIANGLE};
+use crate::simd;
 
 /// How one queue entry of a chunk is shaded. Small on purpose: a chunk's surfaces for the
 /// scalar path wait in `ShadeScratch::surfaces`, so that the common lane entries do not move
@@ -57,6 +59,7 @@ pub fn shade(
     let mut in_lanes = 0;
     for start in (0..rays.len()).step_by(LANES) {
         let chunk = start..(start + LANES).min(rays.len());
+        prefetch_surfaces(ctx, &hits[chunk.end..(chunk.end + LANES).min(hits.len())]);
         scratch.surfaces.clear();
         scratch.lanes.clear();
         let queued = rays.rays[chunk.clone()].iter().zip(&rays.path[chunk.clone()]);
@@ -154,6 +157,23 @@ pub fn shade(
         }
     }
     in_lanes
+}
+
+/// Starts loading what the walk and the lanes will read of the next chunk's hit triangles:
+/// each one's material index and its normals record (`RenderContext::triangle_normals`). Both
+/// are indexed by the hit, so on a mesh larger than the L2 cache they missed it, and the
+/// material's load was the largest stall of the stage (PERF.md, "Whole renders", "The next
+/// chunk's surfaces prefetched"). A chunk's shading is long enough to hide the wait.
+#[inline(always)]
+fn prefetch_surfaces(ctx: &RenderContext, hits: &[Option<Hit>]) {
+    for hit in hits.iter().flatten() {
+        if !prim::is_sphere(hit.prim) {
+            let t = prim::triangle_index(hit.prim) as usize;
+            simd::prefetch(ctx.scene.triangle_materials.as_ptr().wrapping_add(t));
+            let normals = ctx.triangle_normals.as_ptr().wrapping_add(t * NORMALS_PER_TRIANGLE);
+            simd::prefetch(normals as *const [Vec3; NORMALS_PER_TRIANGLE]);
+        }
+    }
 }
 
 /// The albedo of a surface that is shaded in lanes: diffuse, when lanes apply at all.
