@@ -124,7 +124,7 @@ pub struct Accel {
 /// One core's L2 cache in bytes, as Linux reports it for CPU 0
 /// (`/sys/devices/system/cpu/cpu0/cache/index*/`, the level-2 data or unified cache), or 1 MiB
 /// where it reports none (a common size, and the smaller one keeps rays in flight).
-fn l2_cache_bytes() -> usize {
+pub fn l2_cache_bytes() -> usize {
     static L2: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
     *L2.get_or_init(|| l2_from_sysfs().unwrap_or(1 << 20))
 }
