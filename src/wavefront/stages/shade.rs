@@ -41,6 +41,7 @@ pub struct ShadeScratch {
 /// it, the chunk's surface vertices (diffuse, microfacet, specular) are shaded together in SIMD
 /// lanes (`integrator::diffuse`), the others one by one, and every vertex's rays are queued in
 /// queue order, so the queues (and the image) are the same as if all were shaded one by one.
+/// Each chunk starts by prefetching the next chunk's surfaces (`prefetch_surfaces`).
 /// Returns the number of vertices shaded in lanes.
 #[allow(clippy::too_many_arguments)]
 pub fn shade(
