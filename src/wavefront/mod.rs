@@ -22,6 +22,8 @@
 //! surface vertices (under MIS, where the emitters are triangles) are shaded together in SIMD
 //! lanes (`integrator::diffuse`), the others (emitters) one by one (`Integrator::shade_hit`),
 //! and each vertex's rays are queued in queue order, so the images are bit-identical either way.
+//! Where the mesh's normals outgrow the L2 cache, each chunk first prefetches the next chunk's
+//! hit materials and normals, which are indexed by the hit triangle.
 //!
 //! Queue sizes: a tile of 16 x 16 pixels with `spp` samples holds at most 256 x `spp` paths;
 //! samples are processed in batches of at most `SAMPLE_BATCH` per pixel, so a ray queue never
