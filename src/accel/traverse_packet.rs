@@ -293,13 +293,19 @@ pub fn intersect<V: SimdF32>(
                         entry
                     }));
                     let next = e.order[e.k - 1] as usize;
-                    (child, entered, near) = (n.child[next], e.lanes[next], e.near[next]);
+                    (child, entered, near) =
+                        (n.child[next], e.lanes[next], V::copied(&e.near[next]));
                     continue;
                 }
             }
         }
-        match stack.pop() {
-            Some(top) => (child, entered, near) = (top.child, top.lanes, top.near),
+        // The entry is read in place (a copy of it went through two 256-bit halves, see
+        // `SimdF32::copied`).
+        match stack.last() {
+            Some(top) => {
+                (child, entered, near) = (top.child, top.lanes, V::copied(&top.near));
+                stack.pop();
+            }
             None => return hits,
         }
     }

@@ -44,6 +44,9 @@ pub trait SimdF32:
     fn lane(&self, i: usize) -> f32;
     /// Writes the lanes to the first `W` values of `out` (`out.len() >= W`).
     fn store(self, out: &mut [f32]);
+    /// The vector at `v`, read in one load: a plain copy of a 512-bit vector in memory is two
+    /// 256-bit moves (`LaneMemory`), and a 512-bit load of the copy then waits for both.
+    fn copied(v: &Self) -> Self;
     /// The mask of lanes where `self == b`.
     fn simd_eq(self, b: Self) -> Self;
     /// The mask of lanes where `self != b`.
@@ -177,6 +180,10 @@ macro_rules! impl_simd_f32 {
             #[inline(always)]
             fn store(self, out: &mut [f32]) {
                 <$t as LaneMemory>::store_lanes(self, out)
+            }
+            #[inline(always)]
+            fn copied(v: &Self) -> Self {
+                <$t as LaneMemory>::load_lanes(v.as_array())
             }
             #[inline(always)]
             fn simd_eq(self, b: Self) -> Self {
@@ -503,6 +510,10 @@ mod halves {
         fn store(self, out: &mut [f32]) {
             self.lo.store(out);
             self.hi.store(&mut out[8..]);
+        }
+        #[inline(always)]
+        fn copied(v: &Self) -> Self {
+            *v
         }
         lanewise!(simd_eq, simd_ne, simd_lt, simd_le, simd_ge, fast_min, fast_max);
         #[inline(always)]
