@@ -23,7 +23,7 @@ use std::time::{Duration, Instant};
 use rayon::prelude::*;
 
 use crate::geometry::TriangleSoa;
-use crate::math::{Aabb, Hit, Ray, Vec3};
+use crate::math::{fill_no_hits, Aabb, Hit, Ray, Vec3};
 use crate::scene::Scene;
 use crate::simd::{LaneWidth, Lanes, VFloat};
 use crate::{Error, Result};
@@ -439,10 +439,8 @@ impl Accel {
             let active = lanes.active_bits();
             if b.missed_by(lanes) == active {
                 stats.rays += active.count_ones() as u64;
-                // Copied from a constant: LLVM vectorised `fill(None)`, which writes only
-                // each record's tag, into 8-lane scatters, slow on AMD's AVX-512.
                 let n = hits.len().min(W);
-                hits[..n].copy_from_slice(&[None; W][..n]);
+                fill_no_hits(&mut hits[..n]);
                 return;
             }
         }

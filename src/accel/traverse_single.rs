@@ -19,7 +19,7 @@ use super::wide_node::{leaf_range, ChildLanes, Row, WideNode, ARITY, LEAF_BIT};
 use super::TraceStats;
 use crate::geometry::triangles::{TriangleSoa, LANES};
 use crate::geometry::watertight::V3;
-use crate::math::{Hit, Ray, Vec3};
+use crate::math::{fill_no_hits, Hit, Ray, Vec3};
 use crate::simd::prefetch;
 use crate::simd::SimdF32;
 
@@ -489,7 +489,7 @@ pub fn intersect_stream<const K: usize, const PREFETCH: bool>(
     stats: &mut TraceStats,
 ) {
     if nodes.is_empty() {
-        hits[..rays.len()].fill(None);
+        fill_no_hits(&mut hits[..rays.len()]);
         return;
     }
     let blank = || ClosestWalk {

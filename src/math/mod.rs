@@ -6,7 +6,7 @@ mod ray;
 
 pub use exact::ExactRgb;
 pub use glam::{Mat4, Vec3};
-pub use ray::{Hit, Ray};
+pub use ray::{fill_no_hits, reset_hits, Hit, Ray};
 
 /// The coordinates of `points` as one flat slice (x, y, z of each in turn), for gathers that
 /// index single coordinates.

@@ -48,6 +48,27 @@ impl Ray {
     }
 }
 
+/// `None` for every ray of `out`, by copies of a constant block: LLVM vectorises
+/// `fill(None)`, which writes only each record's tag, into 8-lane scatters, slow on AMD's
+/// AVX-512 (PERF.md, "On an AMD EPYC with AVX-512 (Zen 4)").
+pub fn fill_no_hits(out: &mut [Option<Hit>]) {
+    for c in out.chunks_mut(NO_HITS.len()) {
+        c.copy_from_slice(&NO_HITS[..c.len()]);
+    }
+}
+
+/// `hits` as `n` records of `None` (as `fill_no_hits`).
+pub fn reset_hits(hits: &mut Vec<Option<Hit>>, n: usize) {
+    hits.clear();
+    hits.reserve(n);
+    while hits.len() < n {
+        let k = (n - hits.len()).min(NO_HITS.len());
+        hits.extend_from_slice(&NO_HITS[..k]);
+    }
+}
+
+const NO_HITS: [Option<Hit>; 16] = [None; 16];
+
 /// The closest hit found so far. `prim` is a primitive id as defined by `geometry::prim`
 /// (a scene triangle index, or a sphere index with `SPHERE_BIT` set); `u`, `v` are the
 /// barycentric coordinates of vertices 1 and 2 for triangles (unused for spheres).

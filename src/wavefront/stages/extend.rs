@@ -2,7 +2,7 @@
 
 use super::super::{RayQueue, RenderContext};
 use crate::accel::TraceStats;
-use crate::math::Hit;
+use crate::math::{reset_hits, Hit};
 
 /// How a queue's rays are traced. Camera rays of a tile (and their shadow rays) are coherent:
 /// neighbouring queue entries are samples of the same or adjacent pixels, so packets
@@ -67,8 +67,7 @@ pub fn extend(
     hits: &mut Vec<Option<Hit>>,
     stats: &mut TraceStats,
 ) {
-    hits.clear();
-    hits.resize(rays.len(), None);
+    reset_hits(hits, rays.len());
     match coherence {
         Coherence::Camera => ctx.accel.intersect_packets::<CAMERA_PACKET>(&rays.rays, hits, stats),
         Coherence::Coherent => ctx.accel.intersect_packets::<PACKET>(&rays.rays, hits, stats),

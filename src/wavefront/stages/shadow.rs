@@ -4,7 +4,7 @@ use super::super::{PathState, RenderContext, ShadowQueue};
 use super::extend::{Coherence, CAMERA_PACKET, PACKET};
 use crate::accel::TraceStats;
 use crate::integrator::emission_seen;
-use crate::math::{Hit, Vec3};
+use crate::math::{reset_hits, Hit, Vec3};
 
 /// Shadow rays take the coherence of the queue whose hits made them (`Coherence::of_queue`):
 /// from a coherent queue they start at neighbouring points and head for the same lights, so
@@ -47,8 +47,7 @@ pub fn trace_emission_probes(
     if probes.is_empty() {
         return;
     }
-    hits.clear();
-    hits.resize(probes.len(), None);
+    reset_hits(hits, probes.len());
     match coherence {
         Coherence::Camera => {
             ctx.accel.intersect_packets::<CAMERA_PACKET>(&probes.rays, hits, stats)
