@@ -24,7 +24,7 @@ use super::traverse_single::{self, Entry as SingleEntry, WideRay};
 use super::wide_node::{leaf_range, WideNode, ARITY, LEAF_BIT};
 use super::TraceStats;
 use crate::geometry::triangles::{TriangleSoa, LANES};
-use crate::geometry::watertight::{broadcast, edge_test, intersect_simd, splat3, V3};
+use crate::geometry::watertight::{edge_test, intersect_simd, V3};
 use crate::math::{Hit, Ray};
 use crate::simd::SimdF32;
 
@@ -82,9 +82,19 @@ fn slab<V: SimdF32>(p: &RayPacket<V>, min: [f32; 3], max: [f32; 3], t_max: V) ->
 /// order when the lanes share it, else permuted lane by lane.
 #[inline(always)]
 fn splat_tri<V: SimdF32>(tris: &TriangleSoa, i: usize, f: &TriangleFrame<V>) -> [V3<V>; 3] {
+    // Each coordinate broadcast straight from the block: gathered into a vector first, the nine
+    // floats went through masked loads, permutes and a stack copy before their broadcasts.
+    let (b, l) = tris.slot(i);
+    let k = f.axes.uniform.unwrap_or([0, 1, 2]);
+    let get = |row: &[[f32; LANES]; 3]| V3 {
+        x: V::splat(row[k[0]][l]),
+        y: V::splat(row[k[1]][l]),
+        z: V::splat(row[k[2]][l]),
+    };
+    let v = [get(&b.v0), get(&b.v1), get(&b.v2)];
     match f.axes.uniform {
-        Some(k) => tris.vertices_in(i, k).map(|[x, y, z]| broadcast(V3 { x, y, z })),
-        None => tris.vertices(i).map(|v| f.axes.permute(splat3(v))),
+        Some(_) => v,
+        None => v.map(|v| f.axes.permute(v)),
     }
 }
 

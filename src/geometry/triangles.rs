@@ -114,19 +114,12 @@ impl TriangleSoa {
         (&self.blocks[i / LANES], i % LANES)
     }
 
-    /// The vertices (v0, v1, v2) of slot `i`.
-    #[inline(always)]
+    /// The vertices (v0, v1, v2) of slot `i` (the layout's tests; traversal broadcasts each
+    /// coordinate straight from its block, `traverse_packet::splat_tri`).
+    #[cfg(test)]
     pub(crate) fn vertices(&self, i: usize) -> [Vec3; 3] {
         let (b, l) = self.slot(i);
         let get = |row: &[[f32; LANES]; 3]| Vec3::new(row[0][l], row[1][l], row[2][l]);
-        [get(&b.v0), get(&b.v1), get(&b.v2)]
-    }
-
-    /// The vertices of slot `i` with their components in the order `k` ([kx, ky, kz]).
-    #[inline(always)]
-    pub(crate) fn vertices_in(&self, i: usize, k: [usize; 3]) -> [[f32; 3]; 3] {
-        let (b, l) = self.slot(i);
-        let get = |row: &[[f32; LANES]; 3]| [row[k[0]][l], row[k[1]][l], row[k[2]][l]];
         [get(&b.v0), get(&b.v1), get(&b.v2)]
     }
 
