@@ -112,19 +112,23 @@ struct Entry<V> {
 pub struct PacketStack<V> {
     closest: Vec<Entry<V>>,
     any: Vec<(u32, u32)>,
+    /// The children a closest-hit node test entered (`Entered`): made once here, as a fresh
+    /// one per packet was a `memset` of about 600 bytes per packet.
+    entered: Entered<V>,
 }
 
-impl<V> PacketStack<V> {
+impl<V: SimdF32> PacketStack<V> {
     /// Empty stacks with room for the deepest traversal (`(ARITY - 1) * MAX_DEPTH` entries).
     pub fn new() -> PacketStack<V> {
         PacketStack {
             closest: Vec::with_capacity((ARITY - 1) * MAX_DEPTH),
             any: Vec::with_capacity((ARITY - 1) * MAX_DEPTH),
+            entered: Entered::new(),
         }
     }
 }
 
-impl<V> Default for PacketStack<V> {
+impl<V: SimdF32> Default for PacketStack<V> {
     fn default() -> Self {
         Self::new()
     }
@@ -150,9 +154,10 @@ struct Entered<V> {
 }
 
 impl<V: SimdF32> Entered<V> {
-    /// Scratch for one traversal, reused at every node: only the slots entered at the
-    /// current node are read, and `entered_children` writes them first (returning a fresh
-    /// one per node cost a zeroing and, once, a 400-byte copy per node).
+    /// Scratch made once per `PacketStack` and reused at every node of every packet: only the
+    /// slots entered at the current node are read, and `entered_children` writes them first
+    /// (a fresh one per node cost a zeroing and a 400-byte copy per node; one per packet, a
+    /// `memset` per packet).
     fn new() -> Entered<V> {
         Entered {
             near: [V::splat(0.0); ARITY],
@@ -264,9 +269,8 @@ pub fn intersect<V: SimdF32>(
         return hits;
     }
     let interval = if V::W >= INTERVAL_MIN_W { PacketInterval::new(p, active) } else { None };
-    let mut e = Entered::new();
     let mut frame = None;
-    let stack = &mut stack.closest;
+    let PacketStack { closest: stack, entered: e, .. } = stack;
     stack.clear();
     // The current subtree's fields as locals, and the single-ray hand-over given a copy of
     // the entry distances: with `&cur` passed to it, `cur` lived in memory, every new subtree
@@ -294,7 +298,7 @@ pub fn intersect<V: SimdF32>(
                 }
             } else {
                 let n = &nodes[child as usize];
-                entered_children(p, n, lanes, interval.as_ref(), &mut e, stats);
+                entered_children(p, n, lanes, interval.as_ref(), e, stats);
                 if e.k > 0 {
                     // Pushed subtrees start loading now, as in single-ray traversal.
                     stack.extend((0..e.k - 1).map(|j| {
@@ -470,10 +474,9 @@ pub fn occluded<V: SimdF32>(
     }
     // No interval pre-test for occlusion: 0.91x on shadow packets (`INTERVAL_MIN_W`).
     let interval = None;
-    let mut e = Entered::new();
     let mut frame = None;
     let mut blocked = 0u32;
-    let stack = &mut stack.any;
+    let PacketStack { any: stack, entered: e, .. } = stack;
     stack.clear();
     // (child reference, lanes)
     let mut cur = (0u32, active);
@@ -500,7 +503,7 @@ pub fn occluded<V: SimdF32>(
                 }
             } else {
                 let n = &nodes[child as usize];
-                entered_children(p, n, lanes, interval.as_ref(), &mut e, stats);
+                entered_children(p, n, lanes, interval.as_ref(), e, stats);
                 if e.k > 0 {
                     // Farthest first: push in reverse of the farthest-first order.
                     for j in (1..e.k).rev() {
