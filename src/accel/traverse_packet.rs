@@ -112,8 +112,8 @@ struct Entry<V> {
 pub struct PacketStack<V> {
     closest: Vec<Entry<V>>,
     any: Vec<(u32, u32)>,
-    /// The children a closest-hit node test entered (`Entered`): made once here, as a fresh
-    /// one per packet was a `memset` of about 600 bytes per packet.
+    /// The children a node test entered (`Entered`), for closest-hit and any-hit packets alike:
+    /// made once here, as a fresh one per packet was a `memset` of about 600 bytes per packet.
     entered: Entered<V>,
 }
 
