@@ -53,6 +53,13 @@ impl Coherence {
 /// queueing").
 pub const PACKET: usize = if cfg!(target_feature = "avx512f") { 16 } else { 8 };
 
+/// Single-ray fallback threshold of bounce packets: a subtree entered by at most this many
+/// lanes is finished one ray at a time. Bounce rays diverge, so a 16-ray packet reaches most
+/// subtrees with few lanes left, and handing over up to 3 of them took 2% off CBbunny's `-m 5`
+/// renders on Zen 4; 8-ray packets (and camera packets) keep the traversal's default, which
+/// 3 made slower (PERF.md, "Whole renders", "Twenty-fourth session").
+pub const BOUNCE_FALLBACK: u32 = if PACKET >= 16 { 3 } else { 1 };
+
 /// Packet width for camera rays and the shadow rays and probes of their hits: 16 rays in every
 /// build. A tile's queue holds a pixel's samples one after the other, so 16 neighbouring camera
 /// rays share nearly every node and one walk of the tree serves all of them, even as two 8-wide
@@ -70,7 +77,9 @@ pub fn extend(
     reset_hits(hits, rays.len());
     match coherence {
         Coherence::Camera => ctx.accel.intersect_packets::<CAMERA_PACKET>(&rays.rays, hits, stats),
-        Coherence::Coherent => ctx.accel.intersect_packets::<PACKET>(&rays.rays, hits, stats),
+        Coherence::Coherent => {
+            ctx.accel.intersect_packets_with::<PACKET>(&rays.rays, BOUNCE_FALLBACK, hits, stats)
+        }
         Coherence::Incoherent => ctx.accel.intersect_stream(&rays.rays, hits, stats),
     }
 }
