@@ -17,6 +17,9 @@
 //! pixel corners); their samples also queue extra camera rays that only add emission
 //! (`stages::generate`, `--edge-samples`).
 //!
+//! The rays that left the scene are dropped from the queue before it is shaded
+//! (`stages::drop_misses`): their paths end with nothing added.
+//!
 //! Shading a queue (`stages::shade`) starts with one pass that draws every random number its
 //! vertices may use (`sampler::DrawBatch`, vectorised). Then the queue goes by in chunks of 16:
 //! surface vertices (under MIS, where the emitters are triangles) are shaded together in SIMD
@@ -299,6 +302,8 @@ fn trace_sample_batch(
             ctx.accel.is_large(),
         );
         stages::extend(ctx, &ws.rays, coherence, &mut ws.hits, &mut stats.trace);
+        let queued = ws.rays.len();
+        stages::drop_misses(&mut ws.rays, &mut ws.hits);
         ws.next_rays.clear();
         ws.shadow.clear();
         ws.probes.clear();
@@ -331,7 +336,7 @@ fn trace_sample_batch(
         // Hemisphere probes leave the surfaces this queue hit, as the next depth's bounces do.
         let probe_coherence = stages::Coherence::of_queue(
             depth + 1,
-            ws.rays.len(),
+            queued,
             camera_len,
             ctx.packets,
             ctx.accel.is_large(),

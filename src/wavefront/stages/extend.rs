@@ -83,3 +83,53 @@ pub fn extend(
         Coherence::Incoherent => ctx.accel.intersect_stream(&rays.rays, hits, stats),
     }
 }
+
+/// Removes the rays that left the scene (`hits[i]` is `None`) from the queue and `hits`,
+/// keeping the others in order. Such a ray's path ends with nothing added (scene lights are
+/// reached only by light sampling), so shading it did nothing but take a lane of its chunk:
+/// at depths 1 and later a sixth of CBbunny's bounces leave through the open side of the box,
+/// and their chunks ran 84% full. The paths left draw the same numbers (a path's numbers
+/// depend on the path, not on its place in the queue), so the image does not change.
+pub fn drop_misses(rays: &mut RayQueue, hits: &mut Vec<Option<Hit>>) {
+    let Some(first) = hits.iter().position(Option::is_none) else {
+        return;
+    };
+    let mut kept = first;
+    for i in first + 1..hits.len() {
+        if hits[i].is_some() {
+            rays.rays[kept] = rays.rays[i];
+            rays.path[kept] = rays.path[i];
+            hits[kept] = hits[i];
+            kept += 1;
+        }
+    }
+    rays.rays.truncate(kept);
+    rays.path.truncate(kept);
+    hits.truncate(kept);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::{Ray, Vec3};
+
+    fn hit(prim: u32) -> Option<Hit> {
+        Some(Hit { t: 1.0, u: 0.0, v: 0.0, prim })
+    }
+
+    #[test]
+    fn drop_misses_keeps_the_hits_in_queue_order() {
+        let mut rays = RayQueue::default();
+        for path in 0..6 {
+            rays.push(Ray::new(Vec3::new(path as f32, 0.0, 0.0), Vec3::Z), path);
+        }
+        let mut hits = vec![None, hit(1), None, None, hit(4), hit(5)];
+        drop_misses(&mut rays, &mut hits);
+        assert_eq!(rays.path, [1, 4, 5]);
+        assert_eq!(rays.rays.iter().map(|r| r.origin.x).collect::<Vec<_>>(), [1.0, 4.0, 5.0]);
+        assert_eq!(hits, [hit(1), hit(4), hit(5)]);
+        // No misses: nothing moves.
+        drop_misses(&mut rays, &mut hits);
+        assert_eq!(rays.path, [1, 4, 5]);
+    }
+}
