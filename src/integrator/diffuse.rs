@@ -195,7 +195,9 @@ impl DiffuseLanes {
         // at the end (1.04x), and rows transposed take fewer instructions than either.
         self.spheres = 0;
         if self.prim.iter().all(|&p| !prim::is_sphere(p)) {
-            let loaded = if cfg!(target_feature = "avx512f") {
+            let loaded = if self.prim.iter().all(|&p| p == self.prim[0]) {
+                self.splat_triangle(normals)
+            } else if cfg!(target_feature = "avx512f") {
                 self.gather_triangles(normals)
             } else {
                 self.transpose_triangles(normals)
@@ -220,6 +222,22 @@ impl DiffuseLanes {
                 }
             }
         }
+    }
+
+    /// `load_surfaces` for lanes that all hit the same triangle: its normals record read once
+    /// and copied to every lane. A pixel's samples are neighbours in the queue, and where they
+    /// land on one large triangle (a wall) the gathers loaded one record sixteen times over.
+    /// `false` if the index is out of range (`gather_triangles`).
+    fn splat_triangle(&mut self, normals: &[Vec3]) -> bool {
+        let first = prim::triangle_index(self.prim[0]) as usize * NORMALS_PER_TRIANGLE;
+        let Some(record) = normals.get(first..first + NORMALS_PER_TRIANGLE) else {
+            return false;
+        };
+        self.face_normal = record[0].to_array().map(|c| [c; LANES]);
+        for (k, vertex) in record[1..].iter().enumerate() {
+            self.normals[k] = vertex.to_array().map(|c| [c; LANES]);
+        }
+        true
     }
 
     /// `load_surfaces` for lanes that all hit triangles, one coordinate of all 16 lanes at a
