@@ -333,7 +333,8 @@ fn trace_sample_batch(
             &mut ws.paths,
             &mut stats.trace,
         );
-        // Hemisphere probes leave the surfaces this queue hit, as the next depth's bounces do.
+        // Hemisphere probes leave the surfaces this queue hit, as the next depth's bounces do;
+        // the queue's density counts the rays traced at this depth, misses included.
         let probe_coherence = stages::Coherence::of_queue(
             depth + 1,
             queued,

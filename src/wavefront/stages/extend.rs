@@ -89,7 +89,7 @@ pub fn extend(
 /// keeping the others in order. Such a ray's path ends with nothing added (scene lights are
 /// reached only by light sampling), so shading it did nothing but take a lane of its chunk:
 /// at depths 1 and later a sixth of CBbunny's bounces leave through the open side of the box,
-/// and their chunks ran 84% full. The paths left draw the same numbers (a path's numbers
+/// and their chunks ran 82-85% full. The paths left draw the same numbers (a path's numbers
 /// depend on the path, not on its place in the queue), so the image does not change.
 pub fn drop_misses(rays: &mut RayQueue, hits: &mut Vec<Option<Hit>>) {
     let Some(first) = hits.iter().position(Option::is_none) else {
