@@ -16,8 +16,9 @@ use crate::simd;
 /// a whole `Surface` each.
 #[derive(Clone, Copy, Default)]
 enum Entry {
-    /// Nothing more to do: the ray left the scene, its hit counts nothing, or it hit an emitter,
-    /// which the walk has already shaded.
+    /// Nothing more to do: the ray left the scene (the stage loop drops those before shading,
+    /// `drop_misses`, but a queue that keeps them is shaded the same), its hit counts nothing,
+    /// or it hit an emitter, which the walk has already shaded.
     #[default]
     Miss,
     /// In the chunk's lanes, which reconstruct the surface themselves.
