@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 use rayon::prelude::*;
 
 use crate::accel::Accel;
-use crate::integrator::Integrator;
+use crate::integrator::{EmitterAccel, Integrator};
 use crate::math::{ExactRgb, Vec3};
 use crate::sampler::SamplerKind;
 use crate::scene::{Camera, Scene};
@@ -63,6 +63,10 @@ pub struct RenderConfig {
     /// Shade surface vertices in SIMD lanes (`integrator::diffuse`); `false` shades every
     /// vertex alone. Both give bit-identical images (tests/lighting.rs).
     pub shading_lanes: bool,
+    /// Rays that can only add emission look for the emitters first (`integrator::EmitterAccel`);
+    /// `false` traces them as other rays. Both give bit-identical images unless an emitter and
+    /// another surface coincide exactly (tests/emitters_first.rs).
+    pub emitters_first: bool,
 }
 
 impl Default for RenderConfig {
@@ -86,6 +90,7 @@ impl Default for RenderConfig {
             camera: None,
             packets: true,
             shading_lanes: true,
+            emitters_first: true,
         }
     }
 }
@@ -175,10 +180,12 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
     let (samples, window) = check_range_and_crop(config)?;
     let lights = config.integrator.light_set(scene);
     let triangle_normals = scene.triangle_normals()?;
+    let emitters = config.emitters_first.then(|| EmitterAccel::for_scene(scene)).flatten();
     let ctx = RenderContext {
         scene,
         triangle_normals: &triangle_normals,
         accel,
+        emitters: emitters.as_ref(),
         camera: &camera,
         integrator: &config.integrator,
         lights: &lights,

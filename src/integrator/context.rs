@@ -2,7 +2,7 @@
 //! render-wide context, the surface at a hit, and the queues it appends to (the queues' SoA
 //! columns are in `queues`). The wavefront owns the stage loop and re-exports these.
 
-use super::{Integrator, LightSet, RayQueue, ShadowQueue};
+use super::{EmitterAccel, Integrator, LightSet, RayQueue, ShadowQueue};
 use crate::accel::Accel;
 use crate::geometry::prim;
 use crate::math::{Hit, Ray, Vec3};
@@ -19,6 +19,9 @@ pub struct RenderContext<'a> {
     pub triangle_normals: &'a [Vec3],
     /// The acceleration structure over `scene`'s primitives.
     pub accel: &'a Accel,
+    /// The scene's emitters under a structure of their own, for rays that can only add
+    /// emission (`EmitterAccel`); `None` where the emitters are a large part of the scene.
+    pub emitters: Option<&'a EmitterAccel>,
     /// The camera that generates the primary rays.
     pub camera: &'a Camera,
     /// The integrator the shade stage calls.

@@ -12,6 +12,7 @@ mod context;
 mod delta_lanes;
 pub mod diffuse;
 mod diffuse_out;
+mod emitter_accel;
 mod lane_math;
 mod light_lanes;
 pub mod lights;
@@ -20,6 +21,7 @@ mod path;
 mod queues;
 
 pub use context::{emission_seen, surface_material, RenderContext, ShadeOutputs, Surface};
+pub use emitter_accel::EmitterAccel;
 pub use lights::LightSet;
 pub use path::{DirectLighting, DrawLayout};
 pub use queues::{PathState, RayQueue, ShadowQueue};

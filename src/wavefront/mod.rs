@@ -154,6 +154,8 @@ pub struct Workspace {
     hits: Vec<Option<Hit>>,
     /// Occlusion answers of the shadow queue.
     blocked: Vec<bool>,
+    /// The occlusion queries of rays that can only add emission (`stages::extend_to_emitters`).
+    emitter_rays: stages::EmitterScratch,
     /// The random numbers of the current depth's vertices.
     draws: DrawBatch,
     shade: stages::ShadeScratch,
@@ -289,6 +291,7 @@ fn trace_sample_batch(
         &ws.edge_rays,
         stages::Coherence::of_queue(0, 0, 0, ctx.packets, false),
         &mut ws.hits,
+        &mut ws.emitter_rays,
         &mut ws.paths,
         &mut stats.trace,
     );
@@ -301,7 +304,20 @@ fn trace_sample_batch(
             ctx.packets,
             ctx.accel.is_large(),
         );
-        stages::extend(ctx, &ws.rays, coherence, &mut ws.hits, &mut stats.trace);
+        // Where no hit but an emitter's adds anything (a path's last segment), the emitters
+        // are found first (`integrator::EmitterAccel`).
+        match ctx.emitters.filter(|_| ctx.integrator.ignores_surface_hit(depth, ctx.max_depth)) {
+            Some(emitters) => stages::extend_to_emitters(
+                ctx,
+                emitters,
+                &ws.rays.rays,
+                coherence,
+                &mut ws.hits,
+                &mut ws.emitter_rays,
+                &mut stats.trace,
+            ),
+            None => stages::extend(ctx, &ws.rays, coherence, &mut ws.hits, &mut stats.trace),
+        }
         let queued = ws.rays.len();
         stages::drop_misses(&mut ws.rays, &mut ws.hits);
         ws.next_rays.clear();
@@ -347,6 +363,7 @@ fn trace_sample_batch(
             &ws.probes,
             probe_coherence,
             &mut ws.hits,
+            &mut ws.emitter_rays,
             &mut ws.paths,
             &mut stats.trace,
         );

@@ -1,8 +1,9 @@
 //! Stage 2: closest-hit queries for every queued ray.
 
 use super::super::{RayQueue, RenderContext};
-use crate::accel::TraceStats;
-use crate::math::{reset_hits, Hit};
+use crate::accel::{Accel, TraceStats};
+use crate::integrator::{emission_seen, EmitterAccel};
+use crate::math::{reset_hits, Hit, Ray, Vec3};
 
 /// How a queue's rays are traced. Camera rays of a tile (and their shadow rays) are coherent:
 /// neighbouring queue entries are samples of the same or adjacent pixels, so packets
@@ -76,12 +77,90 @@ pub fn extend(
     stats: &mut TraceStats,
 ) {
     reset_hits(hits, rays.len());
+    closest_hits(ctx.accel, &rays.rays, coherence, hits, stats);
+}
+
+/// The closest hit in `accel` of each ray, traced as `coherence` says.
+pub(super) fn closest_hits(
+    accel: &Accel,
+    rays: &[Ray],
+    coherence: Coherence,
+    hits: &mut [Option<Hit>],
+    stats: &mut TraceStats,
+) {
     match coherence {
-        Coherence::Camera => ctx.accel.intersect_packets::<CAMERA_PACKET>(&rays.rays, hits, stats),
+        Coherence::Camera => accel.intersect_packets::<CAMERA_PACKET>(rays, hits, stats),
         Coherence::Coherent => {
-            ctx.accel.intersect_packets_with::<PACKET>(&rays.rays, BOUNCE_FALLBACK, hits, stats)
+            accel.intersect_packets_with::<PACKET>(rays, BOUNCE_FALLBACK, hits, stats)
         }
-        Coherence::Incoherent => ctx.accel.intersect_stream(&rays.rays, hits, stats),
+        Coherence::Incoherent => accel.intersect_stream(rays, hits, stats),
+    }
+}
+
+/// Whether anything in `accel` blocks each ray, traced as `coherence` says.
+pub(super) fn occlusion(
+    accel: &Accel,
+    rays: &[Ray],
+    coherence: Coherence,
+    blocked: &mut [bool],
+    stats: &mut TraceStats,
+) {
+    match coherence {
+        Coherence::Camera => accel.occluded_packets::<CAMERA_PACKET>(rays, blocked, stats),
+        Coherence::Coherent => accel.occluded_packets::<PACKET>(rays, blocked, stats),
+        Coherence::Incoherent => accel.occluded_stream(rays, blocked, stats),
+    }
+}
+
+/// Scratch space of `extend_to_emitters`.
+#[derive(Default)]
+pub struct EmitterScratch {
+    /// The rays that reach an emitter's front face, ending just before it.
+    rays: Vec<Ray>,
+    /// Where each of `rays` is in the traced slice.
+    index: Vec<u32>,
+    blocked: Vec<bool>,
+}
+
+/// For rays that can only add emission (`integrator::EmitterAccel`): the closest hit of each
+/// ray where it is the front face of an emitter, `None` elsewhere (where `extend` and
+/// `emission_seen` find no emission). The emitters' closest hit first, then for the rays that
+/// found a front face, whether anything in the scene lies before it.
+#[allow(clippy::too_many_arguments)]
+pub fn extend_to_emitters(
+    ctx: &RenderContext,
+    emitters: &EmitterAccel,
+    rays: &[Ray],
+    coherence: Coherence,
+    hits: &mut Vec<Option<Hit>>,
+    scratch: &mut EmitterScratch,
+    stats: &mut TraceStats,
+) {
+    reset_hits(hits, rays.len());
+    let Some(accel) = emitters.accel() else {
+        return;
+    };
+    closest_hits(accel, rays, coherence, hits, stats);
+    scratch.rays.clear();
+    scratch.index.clear();
+    for (i, (ray, hit)) in rays.iter().zip(hits.iter_mut()).enumerate() {
+        let Some(h) = *hit else { continue };
+        let h = emitters.scene_hit(h);
+        if emission_seen(ctx.scene, ray, &h) == Vec3::ZERO {
+            *hit = None;
+            continue;
+        }
+        *hit = Some(h);
+        // Up to, not including, the emitter's distance: the emitter itself does not block.
+        let before = Ray::segment(ray.origin, ray.dir, ray.t_min, h.t.next_down());
+        scratch.rays.push(before);
+        scratch.index.push(i as u32);
+    }
+    scratch.blocked.clear();
+    scratch.blocked.resize(scratch.rays.len(), false);
+    occlusion(ctx.accel, &scratch.rays, coherence, &mut scratch.blocked, stats);
+    for (&i, _) in scratch.index.iter().zip(&scratch.blocked).filter(|(_, &b)| b) {
+        hits[i as usize] = None;
     }
 }
 

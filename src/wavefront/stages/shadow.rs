@@ -1,7 +1,7 @@
 //! Stage 4: any-hit queries for the shadow-ray queue; unblocked rays deliver their radiance.
 
 use super::super::{PathState, RenderContext, ShadowQueue};
-use super::extend::{Coherence, CAMERA_PACKET, PACKET};
+use super::extend::{closest_hits, extend_to_emitters, occlusion, Coherence, EmitterScratch};
 use crate::accel::TraceStats;
 use crate::integrator::emission_seen;
 use crate::math::{reset_hits, Hit, Vec3};
@@ -20,13 +20,7 @@ pub fn trace_shadow_rays(
 ) {
     blocked.clear();
     blocked.resize(shadow.len(), false);
-    match coherence {
-        Coherence::Camera => {
-            ctx.accel.occluded_packets::<CAMERA_PACKET>(&shadow.rays, blocked, stats)
-        }
-        Coherence::Coherent => ctx.accel.occluded_packets::<PACKET>(&shadow.rays, blocked, stats),
-        Coherence::Incoherent => ctx.accel.occluded_stream(&shadow.rays, blocked, stats),
-    }
+    occlusion(ctx.accel, &shadow.rays, coherence, blocked, stats);
     for (i, _) in blocked.iter().enumerate().filter(|(_, &b)| !b) {
         paths.radiance[shadow.path[i] as usize] += shadow.radiance[i];
     }
@@ -34,26 +28,30 @@ pub fn trace_shadow_rays(
 
 /// Closest-hit queries for emission probes (uniform hemisphere sampling's directions, the
 /// extra camera rays on emitter outlines): each probe adds its weight times the emission of
-/// the front face it hits (scene lights are not geometry and are never hit). `hits` is scratch
-/// space; the probes of a coherent queue go in packets.
+/// the front face it hits (scene lights are not geometry and are never hit). `hits` and
+/// `scratch` are scratch space; the probes of a coherent queue go in packets, and where the
+/// scene's emitters have a structure of their own, they are found there first
+/// (`extend_to_emitters`).
 pub fn trace_emission_probes(
     ctx: &RenderContext,
     probes: &ShadowQueue,
     coherence: Coherence,
     hits: &mut Vec<Option<Hit>>,
+    scratch: &mut EmitterScratch,
     paths: &mut PathState,
     stats: &mut TraceStats,
 ) {
     if probes.is_empty() {
         return;
     }
-    reset_hits(hits, probes.len());
-    match coherence {
-        Coherence::Camera => {
-            ctx.accel.intersect_packets::<CAMERA_PACKET>(&probes.rays, hits, stats)
+    match ctx.emitters {
+        Some(emitters) => {
+            extend_to_emitters(ctx, emitters, &probes.rays, coherence, hits, scratch, stats)
         }
-        Coherence::Coherent => ctx.accel.intersect_packets::<PACKET>(&probes.rays, hits, stats),
-        Coherence::Incoherent => ctx.accel.intersect_stream(&probes.rays, hits, stats),
+        None => {
+            reset_hits(hits, probes.len());
+            closest_hits(ctx.accel, &probes.rays, coherence, hits, stats);
+        }
     }
     for (i, hit) in hits.iter().enumerate() {
         let seen = hit.map_or(Vec3::ZERO, |h| emission_seen(ctx.scene, &probes.rays[i], &h));
