@@ -180,7 +180,16 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
     let (samples, window) = check_range_and_crop(config)?;
     let lights = config.integrator.light_set(scene);
     let triangle_normals = scene.triangle_normals()?;
-    let emitters = config.emitters_first.then(|| EmitterAccel::for_scene(scene)).flatten();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(config.threads)
+        .build()
+        .map_err(|e| crate::Error::new(format!("cannot start {} threads: {e}", config.threads)))?;
+    // Only path tracing traces rays that can only add emission. Built in the render's own
+    // pool, as its threads are counted: a tree of at most a quarter of the scene's primitives,
+    // a few for the course's lights.
+    let emitters = (config.emitters_first && matches!(config.integrator, Integrator::Path(_)))
+        .then(|| pool.install(|| EmitterAccel::for_scene(scene)))
+        .flatten();
     let ctx = RenderContext {
         scene,
         triangle_normals: &triangle_normals,
@@ -204,10 +213,6 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         shading_lanes: config.shading_lanes,
         scene_epsilon: 1e-5 * bounds.diagonal().max(f32::MIN_POSITIVE),
     };
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(config.threads)
-        .build()
-        .map_err(|e| crate::Error::new(format!("cannot start {} threads: {e}", config.threads)))?;
     // The image buffers first, so that an image too large for memory is an error before any
     // work, and each tile is copied in as it finishes (never the whole image twice).
     let n = config.width as usize * config.height as usize;
