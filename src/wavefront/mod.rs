@@ -18,7 +18,10 @@
 //! (`stages::generate`, `--edge-samples`).
 //!
 //! The rays that left the scene are dropped from the queue before it is shaded
-//! (`stages::drop_misses`): their paths end with nothing added.
+//! (`stages::drop_misses`): their paths end with nothing added. Rays that can only add emission
+//! (the last depth's rays, whose surface hits count nothing, and the emission probes) look for
+//! the emitters first and test occlusion only up to the front face they find
+//! (`stages::extend_to_emitters`, `integrator::EmitterAccel`).
 //!
 //! Shading a queue (`stages::shade`) starts with one pass that draws every random number its
 //! vertices may use (`sampler::DrawBatch`, vectorised). Then the queue goes by in chunks of 16:

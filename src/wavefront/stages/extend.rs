@@ -1,4 +1,5 @@
-//! Stage 2: closest-hit queries for every queued ray.
+//! Stage 2: closest-hit queries for every queued ray; for rays that can only add emission, the
+//! emitters' closest hit and one occlusion query up to it (`extend_to_emitters`).
 
 use super::super::{RayQueue, RenderContext};
 use crate::accel::{Accel, TraceStats};
