@@ -84,6 +84,37 @@ fn renders_the_cornell_box_and_prints_statistics() {
     assert_eq!((img.width(), img.height()), (64, 48));
 }
 
+/// `--no-bvh` is the write-up's brute-force comparison: every ray tests every primitive, also the
+/// rays that can only add emission (which otherwise look for the emitters first).
+#[test]
+fn no_bvh_tests_every_primitive_for_every_ray() {
+    let dir = scratch_dir("no_bvh");
+    let out_png = dir.join("cornell.png");
+    for flags in [&["--shading", "mis", "-m", "1"][..], &["-H", "-m", "2"], &["-m", "1"]] {
+        let mut args = vec!["-t", "2", "-r", "64", "48", "-s", "2", "--quiet", "--no-bvh"];
+        args.extend(flags);
+        let (png, scene) = (out_png.to_str().unwrap(), cornell());
+        args.extend(["-f", png, scene.to_str().unwrap()]);
+        let out = pathtracer(&args);
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success(), "{flags:?}: {stdout}");
+        let number_before = |text: &str, end: &str| -> f64 {
+            let line = stdout.lines().find(|l| l.contains(end)).expect(end);
+            let head = &line[..line.find(end).unwrap()];
+            head.rsplit([' ', '('])
+                .next()
+                .unwrap()
+                .trim()
+                .parse()
+                .unwrap_or_else(|_| panic!("{text}: {line}"))
+        };
+        let prims = number_before("primitives", " primitives tested per ray");
+        let tested = number_before("tests", " primitive tests)");
+        assert!(prims >= 14.0, "{flags:?}: {stdout}");
+        assert_eq!(tested, prims, "{flags:?}: {stdout}");
+    }
+}
+
 #[test]
 fn info_reports_the_course_scene() {
     let Some(scene) = common::course_scene("sky/CBspheres_lambertian.dae") else {

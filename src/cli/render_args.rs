@@ -139,6 +139,9 @@ impl RenderArgs {
             progress: !self.quiet,
             integrator: Integrator::Path(DirectLighting::LightSampling),
             samples: self.sample_range,
+            // `--no-bvh` tests every primitive for every ray (the write-up's comparison), so
+            // no ray takes the emitters' own tree either.
+            emitters_first: !self.no_bvh,
             ..defaults
         };
         if let Some(r) = &self.resolution {
