@@ -119,3 +119,56 @@ fn the_emitters_structure_answers_with_scene_ids_and_only_where_emitters_are_few
     bright.horizontal_quad(1.0, (-1.0, 1.0), (-1.0, 1.0), false, light);
     assert!(EmitterAccel::for_scene(&bright.build()).is_none(), "half the triangles emit");
 }
+
+/// An emissive sphere (no emissive triangle): its tree holds the sphere alone, and a render
+/// through it gives the same bytes as the whole scene's walk, under MIS and hemisphere sampling.
+#[test]
+fn an_emissive_sphere_alone_is_found_first_with_the_same_image() {
+    use pathtracer::scene::Sphere;
+    let mut b = SceneBuilder::new();
+    let grey = b.material(Material::Diffuse { albedo: Vec3::splat(0.5) });
+    let light = b.material(Material::Emission { radiance: Vec3::splat(4.0) });
+    for k in 0..4 {
+        b.horizontal_quad(-(k as f32), (-2.0, 2.0), (-2.0, 2.0), true, grey);
+    }
+    // The light is the second sphere, so that its id in the emitters' tree (0) differs.
+    b.scene.spheres.push(Sphere { center: Vec3::new(0.8, 0.4, 0.0), radius: 0.3, material: grey });
+    b.scene.spheres.push(Sphere { center: Vec3::new(0.0, 1.5, 0.0), radius: 0.3, material: light });
+    let scene = b.build();
+    let emitters = EmitterAccel::for_scene(&scene).expect("1 emitter of 10 primitives");
+    let ray = Ray::new(Vec3::new(0.0, 0.5, 0.0), Vec3::Y);
+    let hit = emitters.accel().unwrap().intersect(&ray, &mut TraceStats::default()).unwrap();
+    let whole = Accel::new(&scene).intersect(&ray, &mut TraceStats::default()).unwrap();
+    assert_eq!(emitters.scene_hit(hit), whole);
+    let accel = Accel::new(&scene);
+    for (integrator, m) in [(MIS, 1), (MIS, 3), (HEMISPHERE, 2)] {
+        let config = |first| RenderConfig {
+            integrator,
+            width: 32,
+            height: 24,
+            spp: 8,
+            max_depth: m,
+            threads: 2,
+            seed: 3,
+            emitters_first: first,
+            ..RenderConfig::default()
+        };
+        let (a, b) = (
+            render(&scene, &accel, &config(true)).unwrap(),
+            render(&scene, &accel, &config(false)).unwrap(),
+        );
+        let bits = |p: &[Vec3]| -> Vec<u32> {
+            p.iter().flat_map(|x| x.to_array().map(f32::to_bits)).collect()
+        };
+        assert!(
+            a.pixels.iter().any(|p| p.max_element() > 0.0),
+            "{} -m {m}: black",
+            integrator.name()
+        );
+        assert!(
+            bits(&a.pixels) == bits(&b.pixels),
+            "{} -m {m}: the image changed",
+            integrator.name()
+        );
+    }
+}
