@@ -9,8 +9,19 @@ use common::{SceneBuilder, HEMISPHERE, LIGHT, MIS};
 use pathtracer::accel::{Accel, AccelKind, TraceStats};
 use pathtracer::integrator::EmitterAccel;
 use pathtracer::math::{Ray, Vec3};
-use pathtracer::render::{render, RenderConfig};
-use pathtracer::scene::Material;
+use pathtracer::render::{render, RenderConfig, RenderOutput};
+use pathtracer::scene::{Material, Scene};
+
+/// `config` rendered with the emitters first and without.
+fn render_both(scene: &Scene, accel: &Accel, config: RenderConfig) -> (RenderOutput, RenderOutput) {
+    let with = |first| RenderConfig { emitters_first: first, ..config.clone() };
+    (render(scene, accel, &with(true)).unwrap(), render(scene, accel, &with(false)).unwrap())
+}
+
+/// The pixels' bits, for byte-for-byte comparison.
+fn bits(pixels: &[Vec3]) -> Vec<u32> {
+    pixels.iter().flat_map(|x| x.to_array().map(f32::to_bits)).collect()
+}
 
 /// Every course scene and the project's Cornell box, under each estimator, give the same bytes
 /// and the same ray counts with and without the emitters first; and the emitters-first renders
@@ -26,7 +37,7 @@ fn emission_only_rays_give_the_same_image_with_the_emitters_first() {
         let has_emitters = scene.materials.iter().any(|m| m.emission() != Vec3::ZERO);
         let runs = [(MIS, 1, 1), (MIS, 5, 2), (HEMISPHERE, 2, 1), (LIGHT, 5, 1), (LIGHT, 1, 1)];
         for (integrator, m, l) in runs {
-            let config = |first| RenderConfig {
+            let config = RenderConfig {
                 integrator,
                 width: 40,
                 height: 30,
@@ -35,17 +46,10 @@ fn emission_only_rays_give_the_same_image_with_the_emitters_first() {
                 light_samples: l,
                 threads: 2,
                 seed: 7,
-                emitters_first: first,
                 ..RenderConfig::default()
             };
-            let (a, b) = (
-                render(&scene, &accel, &config(true)).unwrap(),
-                render(&scene, &accel, &config(false)).unwrap(),
-            );
+            let (a, b) = render_both(&scene, &accel, config);
             let name = format!("{} {} -m {m}", path.display(), integrator.name());
-            let bits = |p: &[Vec3]| -> Vec<u32> {
-                p.iter().flat_map(|x| x.to_array().map(f32::to_bits)).collect()
-            };
             assert!(bits(&a.pixels) == bits(&b.pixels), "{name}: the image changed");
             let (mut sa, mut sb) = (a.stats, b.stats);
             let work = |t: &TraceStats| t.node_tests + t.triangle_tests + t.sphere_tests;
@@ -142,7 +146,7 @@ fn an_emissive_sphere_alone_is_found_first_with_the_same_image() {
     assert_eq!(emitters.scene_hit(hit), whole);
     let accel = Accel::new(&scene);
     for (integrator, m) in [(MIS, 1), (MIS, 3), (HEMISPHERE, 2)] {
-        let config = |first| RenderConfig {
+        let config = RenderConfig {
             integrator,
             width: 32,
             height: 24,
@@ -150,16 +154,9 @@ fn an_emissive_sphere_alone_is_found_first_with_the_same_image() {
             max_depth: m,
             threads: 2,
             seed: 3,
-            emitters_first: first,
             ..RenderConfig::default()
         };
-        let (a, b) = (
-            render(&scene, &accel, &config(true)).unwrap(),
-            render(&scene, &accel, &config(false)).unwrap(),
-        );
-        let bits = |p: &[Vec3]| -> Vec<u32> {
-            p.iter().flat_map(|x| x.to_array().map(f32::to_bits)).collect()
-        };
+        let (a, b) = render_both(&scene, &accel, config);
         assert!(
             a.pixels.iter().any(|p| p.max_element() > 0.0),
             "{} -m {m}: black",
