@@ -161,6 +161,9 @@ pub struct RenderOutput {
     pub stats: RenderStats,
     /// Wall time of the render loop (not the setup before it).
     pub time: Duration,
+    /// The emitters' own tree (`integrator::EmitterAccel`), where the render built one: its
+    /// primitives and build time, part of the setup that `time` leaves out.
+    pub emitter_tree: Option<(usize, Duration)>,
 }
 
 /// Renders `scene` through `accel` as `config` says.
@@ -187,9 +190,11 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
     // Only path tracing traces rays that can only add emission. Built in the render's own
     // pool, as its threads are counted: a tree of at most a quarter of the scene's primitives,
     // a few for the course's lights.
+    let emitters_start = Instant::now();
     let emitters = (config.emitters_first && matches!(config.integrator, Integrator::Path(_)))
         .then(|| pool.install(|| EmitterAccel::for_scene(scene)))
         .flatten();
+    let emitter_tree = emitters.as_ref().map(|e| (e.primitive_count(), emitters_start.elapsed()));
     let ctx = RenderContext {
         scene,
         triangle_normals: &triangle_normals,
@@ -263,7 +268,7 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
     let Image { pixels, samples, sums, stats, .. } =
         image.into_inner().unwrap_or_else(|e| e.into_inner());
     let (width, height) = (config.width, config.height);
-    Ok(RenderOutput { width, height, pixels, samples, window, sums, stats, time })
+    Ok(RenderOutput { width, height, pixels, samples, window, sums, stats, time, emitter_tree })
 }
 
 /// Whether a render takes extra camera rays on emitter outlines at all: a path integrator,

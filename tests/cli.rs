@@ -75,9 +75,13 @@ fn renders_the_cornell_box_and_prints_statistics() {
     ]);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
-    for want in
-        ["Building BVH from", "rays", "million rays per second", "intersection tests per ray"]
-    {
+    for want in [
+        "Building BVH from",
+        "Building the emitters' BVH from 2 primitives",
+        "rays",
+        "million rays per second",
+        "intersection tests per ray",
+    ] {
         assert!(stdout.contains(want), "missing '{want}' in:\n{stdout}");
     }
     let img = image::open(&out_png).unwrap();
@@ -111,6 +115,7 @@ fn no_bvh_tests_every_primitive_for_every_ray() {
         let prims = number_before("primitives", " primitives tested per ray");
         let tested = number_before("tests", " primitive tests)");
         assert!(prims >= 14.0, "{flags:?}: {stdout}");
+        assert!(!stdout.contains("emitters' BVH"), "{flags:?}: {stdout}");
         assert_eq!(tested, prims, "{flags:?}: {stdout}");
     }
 }

@@ -82,6 +82,13 @@ fn render_to_file(cli: &Cli) -> Result<()> {
         let camera = bvh_preview::camera_for(&scene, config);
         bvh_preview::mark_node(&mut out.pixels, &camera, &accel, n);
     }
+    if let Some((prims, secs)) = out.emitter_tree {
+        // Built by the render (before its clock starts), so reported once it returns.
+        report.print(format_args!(
+            "[PathTracer] Building the emitters' BVH from {prims} primitives... Done! ({:.4} sec)\n",
+            secs.as_secs_f64()
+        ));
+    }
     print_render_stats(&mut report, &out.stats, out.time);
     if cli.is_part() {
         report.print(format_args!("[PathTracer] Saving part to file: {}... ", output.display()));

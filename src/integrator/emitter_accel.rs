@@ -67,6 +67,11 @@ impl EmitterAccel {
         Some(EmitterAccel { accel: Some(Accel::new(&sub)), triangles, spheres })
     }
 
+    /// How many primitives (triangles and spheres) the tree holds.
+    pub fn primitive_count(&self) -> usize {
+        self.triangles.len() + self.spheres.len()
+    }
+
     /// The structure to trace, `None` when the scene has no emitters (no ray sees emission).
     pub fn accel(&self) -> Option<&Accel> {
         self.accel.as_ref()
