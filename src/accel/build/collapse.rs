@@ -3,7 +3,7 @@
 //! least expected traversal cost, by the dynamic programme of Ylitie, Karras and Laine (2017,
 //! "Efficient incoherent ray traversal on GPUs through compressed wide BVHs"), described, not
 //! copied, with the leaves given: every binary subtree of at most `max_leaf` triangles is one
-//! leaf. For each binary node and each number of slots k it finds the cheapest way to hand its
+//! leaf, unless rays start inside its box (`OriginBoxes`: a room's walls). For each binary node and each number of slots k it finds the cheapest way to hand its
 //! subtree to its wide parent as exactly k children; a wide node costs its box's area (a random
 //! ray's odds of visiting it) times `NODE_COST + SLOT_COST` per used slot.
 //!
@@ -13,6 +13,7 @@
 //! test and makes leaves of one or two triangles, while the single-ray leaf test takes 8 at
 //! once.
 
+use super::OriginBoxes;
 use crate::accel::node::BvhNode;
 use crate::accel::wide_node::{leaf_ref, WideNode, ARITY, MAX_LEAF};
 
@@ -25,6 +26,7 @@ const SLOT_COST: f32 = 0.1;
 
 /// The wide tree of `nodes` (depth-first, root first; the first interior child of a node
 /// follows it), with binary subtrees of at most `max_leaf` triangles merged into leaves
+/// (except where rays start inside them, `OriginBoxes`)
 /// (`max_leaf` and the binary leaves at most `MAX_LEAF`)
 /// (0: keep the binary leaves). An empty binary tree gives an empty one; a tree that is one
 /// leaf gives one wide node with that leaf as its only child.
@@ -84,6 +86,7 @@ struct Collapser<'a> {
     nodes: &'a [BvhNode],
     ranges: Vec<(u32, u32)>,
     max_leaf: usize,
+    root: OriginBoxes,
     /// Per binary node (`plans`).
     plans: Vec<Plan>,
 }
@@ -103,14 +106,20 @@ struct Plan {
 impl<'a> Collapser<'a> {
     /// The collapse of `nodes` (not empty), its plans made.
     fn new(nodes: &'a [BvhNode], max_leaf: usize) -> Collapser<'a> {
-        let mut c = Collapser { nodes, ranges: subtree_ranges(nodes), max_leaf, plans: Vec::new() };
+        let root = OriginBoxes::of_root(nodes[0].min, nodes[0].max);
+        let ranges = subtree_ranges(nodes);
+        let mut c = Collapser { nodes, ranges, max_leaf, root, plans: Vec::new() };
         c.plans = c.plans();
         c
     }
 
-    /// Whether binary node `i` becomes a wide leaf.
+    /// Whether binary node `i` becomes a wide leaf: a binary leaf, or a small subtree that rays
+    /// do not start inside (`OriginBoxes`).
     fn is_leaf(&self, i: usize) -> bool {
-        self.nodes[i].is_leaf() || self.ranges[i].1 as usize <= self.max_leaf
+        let n = &self.nodes[i];
+        n.is_leaf()
+            || (self.ranges[i].1 as usize <= self.max_leaf
+                && !self.root.holds_origins(n.min, n.max))
     }
 
     fn leaf_ref(&self, i: usize) -> u32 {
@@ -322,5 +331,73 @@ mod tests {
             }
         }
         assert!(collapse(&[], 8).is_empty());
+    }
+
+    /// Rays start inside a room, so no leaf may span it (`OriginBoxes`): the room's twelve
+    /// wall triangles end up in leaves of one wall each, while a compact mesh in the room keeps
+    /// its leaves of up to `MAX_LEAF` triangles (over 5 on average, as without the room).
+    /// Built as `Accel` builds (nodes of 8 merged), and with every split.
+    #[test]
+    fn rooms_split_into_walls_meshes_keep_full_leaves() {
+        let p = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+        let mut tris: Vec<[Vec3; 3]> = Vec::new();
+        for axis in 0..3 {
+            for side in [0.0, 10.0] {
+                let corner = |a: f32, b: f32| {
+                    let mut c = [0.0; 3];
+                    c[axis] = side;
+                    c[(axis + 1) % 3] = a;
+                    c[(axis + 2) % 3] = b;
+                    p(c[0], c[1], c[2])
+                };
+                tris.push([corner(0.0, 0.0), corner(10.0, 0.0), corner(10.0, 10.0)]);
+                tris.push([corner(0.0, 0.0), corner(10.0, 10.0), corner(0.0, 10.0)]);
+            }
+        }
+        let walls = tris.len();
+        let mut rng = Pcg32::new(3, 4);
+        for _ in 0..256 {
+            let c = p(rng.next_f32(), rng.next_f32(), rng.next_f32()) + Vec3::splat(4.5);
+            let mut d = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 0.05;
+            let (a, b) = (d(), d());
+            tris.push([c, c + a, c + b]);
+        }
+        let boxes: Vec<Aabb> = tris.iter().map(|t| Aabb::from_points(t)).collect();
+        let mesh_leaves = |boxes: &[Aabb], merge: usize, offset: u32| {
+            let bin = crate::accel::build::build_merged(
+                boxes.len(),
+                |i| boxes[i],
+                BuildParams::default(),
+                merge,
+            );
+            let wide = collapse(&bin.nodes, MAX_LEAF);
+            let mut found = Vec::new();
+            leaves(&wide, 0, &mut found);
+            let mut mesh: Vec<Vec<u32>> = Vec::new();
+            for (first, count) in found {
+                let mut ids: Vec<u32> = bin.order[first as usize..][..count as usize].to_vec();
+                ids.sort_unstable();
+                if ids[0] < offset {
+                    assert!(
+                        ids.iter().all(|&i| i / 2 == ids[0] / 2),
+                        "merge {merge}: a leaf spans walls {ids:?}"
+                    );
+                } else {
+                    mesh.push(ids.iter().map(|i| i - offset).collect());
+                }
+            }
+            mesh.sort();
+            mesh
+        };
+        for merge in [0, MAX_LEAF] {
+            let in_room = mesh_leaves(&boxes, merge, walls as u32);
+            let alone = mesh_leaves(&boxes[walls..], merge, 0);
+            for leaves in [&in_room, &alone] {
+                let triangles: usize = leaves.iter().map(Vec::len).sum();
+                assert_eq!(triangles, 256);
+                // Binning differs under the room's root, so the leaves are not the same ones.
+                assert!(leaves.len() * 5 <= 256, "merge {merge}: {} mesh leaves", leaves.len());
+            }
+        }
     }
 }

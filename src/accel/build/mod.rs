@@ -166,8 +166,9 @@ pub fn build(bounds: &[Aabb], params: BuildParams) -> BuiltBvh {
 
 /// [`build`] over the `count` primitives whose boxes `box_of` gives (computed in parallel, in
 /// the caller's rayon pool), except that every node of at most `merge` primitives becomes a
-/// leaf without looking for a split. For the wide tree (`collapse` with the same `merge`),
-/// which turns every binary subtree of at most `merge` triangles into one leaf anyway: its
+/// leaf without looking for a split, unless rays start inside it (`OriginBoxes`). For the wide
+/// tree (`collapse` with the same `merge`), which turns every such binary subtree into one
+/// leaf anyway (a box inside one that holds no origins holds none either): its
 /// nodes, leaf ranges and boxes come out the same, only the order of the triangles inside a
 /// leaf differs, and the many small nodes near the leaves (most of the binary tree's nodes)
 /// cost nothing.
@@ -199,7 +200,13 @@ pub(crate) fn build_merged(
     hugepage::prefer(nodes.spare_capacity_mut());
     let mut bins = binned_sah::Bins::new();
     let node = Node { bounds: root_bounds, centroids: root_centroids, first: 0, depth: 0 };
-    let ctx = Ctx { params, merge };
+    let root = root_bounds.aabb();
+    let root = if root.is_empty() {
+        OriginBoxes::of_root([0.0; 3], [0.0; 3])
+    } else {
+        OriginBoxes::of_root(root.min.into(), root.max.into())
+    };
+    let ctx = Ctx { params, merge, root };
     build_node(&mut nodes, &mut prims, node, &ctx, &mut bins);
     // Give back the rest of the reservation so the memory the benchmark reports is what
     // traversal uses (shrinking a large block in place does not copy it).
@@ -217,8 +224,44 @@ const BOUNDS_CHUNK: usize = 16 * 1024;
 /// What every node of one build shares.
 struct Ctx {
     params: BuildParams,
-    /// Nodes of at most this many primitives are leaves (`build_merged`).
+    /// Nodes of at most this many primitives are leaves (`build_merged`), unless rays start
+    /// inside them.
     merge: usize,
+    root: OriginBoxes,
+}
+
+/// Which boxes rays start inside. The SAH prices a box by its area, the odds that a ray from
+/// outside crosses it; a ray that starts inside a box cannot skip it, whatever the split. In
+/// an enclosed scene (a room: every Cornell box) a small subtree can span the whole room, e.g.
+/// the walls, and every ray then tests every triangle of that leaf. So a box whose share of
+/// the scene's volume is at least `ORIGIN_SHARE` times its share of the scene's surface area is
+/// split even where the SAH would keep a leaf: flat or small boxes (a wall, a mesh's leaves)
+/// have a tiny volume share, the room's box a share of 1.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct OriginBoxes {
+    volume: f32,
+    half_area: f32,
+}
+
+/// See `OriginBoxes` (PERF.md, "Leaves on box-like scenes").
+const ORIGIN_SHARE: f32 = 0.25;
+
+impl OriginBoxes {
+    pub(crate) fn of_root(min: [f32; 3], max: [f32; 3]) -> OriginBoxes {
+        let (volume, half_area) = volume_and_half_area(min, max);
+        OriginBoxes { volume, half_area }
+    }
+
+    /// Whether rays are likely to start inside the box `min`..`max` (`OriginBoxes`).
+    pub(crate) fn holds_origins(&self, min: [f32; 3], max: [f32; 3]) -> bool {
+        let (volume, half_area) = volume_and_half_area(min, max);
+        self.volume > 0.0 && volume * self.half_area >= ORIGIN_SHARE * half_area * self.volume
+    }
+}
+
+fn volume_and_half_area(min: [f32; 3], max: [f32; 3]) -> (f32, f32) {
+    let d = [0, 1, 2].map(|a| (max[a] - min[a]).max(0.0));
+    (d[0] * d[1] * d[2], d[0] * d[1] + d[1] * d[2] + d[2] * d[0])
 }
 
 /// The box and the centroid (`centroid2`) box of `prims`.
@@ -256,11 +299,12 @@ fn build_node(
     let (min, max) =
         if aabb.is_empty() { ([0.0; 3], [0.0; 3]) } else { (aabb.min.into(), aabb.max.into()) };
     nodes.push(BvhNode { min, index: first as u32, max, count: count as u32 });
-    if count <= 1 || count <= ctx.merge {
+    let origins = count > 1 && ctx.root.holds_origins(min, max);
+    if count <= 1 || (count <= ctx.merge && !origins) {
         return index as u32;
     }
 
-    let small = count <= params.max_leaf;
+    let small = count <= params.max_leaf && !origins;
     let split = if depth < SAH_DEPTH_LIMIT {
         binned_sah::find_split(prims, bounds, centroids, params, bins)
     } else {
