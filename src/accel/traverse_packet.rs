@@ -6,10 +6,13 @@
 //! children are visited nearest first (by the nearest lane's entry
 //! distance) with one stack shared by the packet, each entry remembering which lanes entered
 //! the subtree and at what distance. Leaves test one triangle against all W rays with the
-//! same watertight test as the single-ray path, so t, u, v are bit-identical. When no
-//! more than `fallback` lanes enter a subtree, those lanes finish it with single-ray
+//! same watertight test as the single-ray path, so t, u, v are bit-identical, or test the
+//! lanes one by one against the whole leaf where that is fewer tests (`leaf_by_lane`). When no
+//! more than `fallback` lanes enter an interior subtree, those lanes finish it with single-ray
 //! traversal (`traverse_single::*_subtree`): a mostly-empty packet pays W lanes of work per
-//! box for a few rays' worth of benefit.
+//! box for a few rays' worth of benefit. A leaf goes to the leaf tests whatever its lanes:
+//! handed over, it paid the single ray's box-test terms for no box (PERF.md, "Rooms split into
+//! walls").
 //!
 //! Hits are the nearest (t, then smallest prim) among a set that does not depend on the
 //! visiting order (`leaf`: hits in front of the leaf box), and each lane's box test computes what the
@@ -33,7 +36,7 @@ use crate::simd::SimdF32;
 /// Measured: PERF.md, "Measurements moved from doc comments".
 pub const INTERVAL_MIN_W: usize = 16;
 
-/// Default single-ray fallback thresholds: a subtree entered by at most this many lanes is
+/// Default single-ray fallback thresholds: an interior subtree entered by at most this many lanes is
 /// finished one ray at a time. Measured (PERF.md, "Packets on the wide tree"): handing over
 /// lone lanes saves up to 7 % of the instructions on incoherent rays and costs at most 0.2 %
 /// on coherent ones; handing over two or three lanes was worse.
@@ -282,10 +285,7 @@ pub fn intersect<V: SimdF32>(
         // Lanes whose best hit is already nearer than the subtree drop out of it.
         let lanes = entered & near.simd_le(p.t_max * V::splat(BOX_INFLATE)).bitmask();
         if lanes != 0 {
-            if lanes.count_ones() <= fallback {
-                let f = frame.get_or_insert_with(|| TriangleFrame::of(p));
-                finish_single(nodes, tris, child, &{ near }, lanes, f, p, &mut hits, stats);
-            } else if child & LEAF_BIT != 0 {
+            if child & LEAF_BIT != 0 {
                 let (first, count) = leaf_range(child);
                 let f = frame.get_or_insert_with(|| TriangleFrame::of(p));
                 if leaf_by_lane(lanes, count) {
@@ -296,6 +296,9 @@ pub fn intersect<V: SimdF32>(
                 } else {
                     intersect_leaf(tris, first, count, near, lanes, f, p, &mut hits, stats);
                 }
+            } else if lanes.count_ones() <= fallback {
+                let f = frame.get_or_insert_with(|| TriangleFrame::of(p));
+                finish_single(nodes, tris, child, &{ near }, lanes, f, p, &mut hits, stats);
             } else {
                 let n = &nodes[child as usize];
                 entered_children(p, n, lanes, interval.as_ref(), e, stats);
@@ -484,13 +487,7 @@ pub fn occluded<V: SimdF32>(
         let lanes = cur.1 & !blocked;
         if lanes != 0 {
             let child = cur.0;
-            if lanes.count_ones() <= fallback {
-                let f = frame.get_or_insert_with(|| TriangleFrame::of(p));
-                blocked |= blocked_lane_by_lane(lanes, p, |i, ray| {
-                    let wr = WideRay::of_lane(p, i, LeafRay::of_lane(f, i));
-                    traverse_single::occluded_subtree(nodes, tris, &wr, child, ray, stats)
-                });
-            } else if child & LEAF_BIT != 0 {
+            if child & LEAF_BIT != 0 {
                 let (first, count) = leaf_range(child);
                 let f = frame.get_or_insert_with(|| TriangleFrame::of(p));
                 if leaf_by_lane(lanes, count) {
@@ -501,6 +498,12 @@ pub fn occluded<V: SimdF32>(
                 } else {
                     blocked |= occluded_leaf(tris, first, count, lanes, f, p, stats);
                 }
+            } else if lanes.count_ones() <= fallback {
+                let f = frame.get_or_insert_with(|| TriangleFrame::of(p));
+                blocked |= blocked_lane_by_lane(lanes, p, |i, ray| {
+                    let wr = WideRay::of_lane(p, i, LeafRay::of_lane(f, i));
+                    traverse_single::occluded_subtree(nodes, tris, &wr, child, ray, stats)
+                });
             } else {
                 let n = &nodes[child as usize];
                 entered_children(p, n, lanes, interval.as_ref(), e, stats);

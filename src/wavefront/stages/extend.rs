@@ -55,8 +55,8 @@ impl Coherence {
 /// queueing").
 pub const PACKET: usize = if cfg!(target_feature = "avx512f") { 16 } else { 8 };
 
-/// Single-ray fallback threshold of bounce packets: a subtree entered by at most this many
-/// lanes is finished one ray at a time. Bounce rays diverge, so a 16-ray packet reaches most
+/// Single-ray fallback threshold of bounce packets: an interior subtree entered by at most this
+/// many lanes is finished one ray at a time (leaves never are: `traverse_packet`). Bounce rays diverge, so a 16-ray packet reaches most
 /// subtrees with few lanes left, and handing over up to 3 of them took 1-2% off CBbunny's `-m 5`
 /// renders on Zen 4; 8-ray packets (and camera packets) keep the traversal's default, which
 /// 3 made slower (PERF.md, "Whole renders", "Misses out of the queue, one wall's normals read
