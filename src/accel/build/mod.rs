@@ -239,12 +239,12 @@ struct Ctx {
 /// have a tiny volume share, the room's box a share of 1.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct OriginBoxes {
-    volume: f32,
-    half_area: f32,
+    volume: f64,
+    half_area: f64,
 }
 
-/// See `OriginBoxes` (PERF.md, "Leaves on box-like scenes").
-const ORIGIN_SHARE: f32 = 0.25;
+/// See `OriginBoxes` (PERF.md, "Rooms split into walls").
+const ORIGIN_SHARE: f64 = 0.25;
 
 impl OriginBoxes {
     pub(crate) fn of_root(min: [f32; 3], max: [f32; 3]) -> OriginBoxes {
@@ -259,8 +259,10 @@ impl OriginBoxes {
     }
 }
 
-fn volume_and_half_area(min: [f32; 3], max: [f32; 3]) -> (f32, f32) {
-    let d = [0, 1, 2].map(|a| (max[a] - min[a]).max(0.0));
+/// In f64: a volume of f32 extents can overflow f32 (a scene 1e13 across), and an infinite
+/// volume would make every box hold origins.
+fn volume_and_half_area(min: [f32; 3], max: [f32; 3]) -> (f64, f64) {
+    let d = [0, 1, 2].map(|a| (max[a] as f64 - min[a] as f64).max(0.0));
     (d[0] * d[1] * d[2], d[0] * d[1] + d[1] * d[2] + d[2] * d[0])
 }
 
@@ -428,6 +430,23 @@ mod tests {
             assert_eq!(one.order, two.order, "merge {merge}");
             assert_eq!(one.bounds, two.bounds, "merge {merge}");
         }
+    }
+
+    /// Rays start inside the room's box and its halves, not inside a wall or a small box, at
+    /// any scale: a scene 1e20 across has a volume beyond f32, which would otherwise make every
+    /// box hold origins (or none).
+    #[test]
+    fn origin_boxes_are_the_roomy_ones_at_any_scale() {
+        for scale in [1e-20f32, 1.0, 1e20] {
+            let room = OriginBoxes::of_root([0.0; 3], [scale; 3]);
+            let s = |v: f32| v * scale;
+            assert!(room.holds_origins([0.0; 3], [scale; 3]), "scale {scale}");
+            assert!(room.holds_origins([0.0; 3], [s(0.5), scale, scale]), "scale {scale}");
+            assert!(!room.holds_origins([0.0; 3], [scale, 0.0, scale]), "a wall, scale {scale}");
+            assert!(!room.holds_origins([0.0; 3], [s(0.05); 3]), "a small box, scale {scale}");
+        }
+        let flat = OriginBoxes::of_root([0.0; 3], [1.0, 0.0, 1.0]);
+        assert!(!flat.holds_origins([0.0; 3], [1.0, 0.0, 1.0]), "a flat scene has no inside");
     }
 
     /// The brute-force tree: leaves of at most `leaf` tile the primitives in order, every
