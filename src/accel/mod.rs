@@ -449,8 +449,8 @@ impl Accel {
     }
 
     /// Closest hits of a prepared packet; `hits[i]` answers lane `i` (`None` for inactive
-    /// lanes). `fallback`: interior subtrees entered by at most this many lanes finish ray by ray. The
-    /// packet is taken by value (traversal shrinks its `t_max`), so no copy is made of it.
+    /// lanes). `fallback`: interior subtrees entered by at most this many lanes finish ray by
+    /// ray. The packet is taken by value (traversal shrinks its `t_max`), so no copy is made of it.
     pub fn intersect_ray_packet<const W: usize>(
         &self,
         mut packet: RayPacket<VFloat<W>>,

@@ -36,10 +36,10 @@ use crate::simd::SimdF32;
 /// Measured: PERF.md, "Measurements moved from doc comments".
 pub const INTERVAL_MIN_W: usize = 16;
 
-/// Default single-ray fallback thresholds: an interior subtree entered by at most this many lanes is
-/// finished one ray at a time. Measured (PERF.md, "Packets on the wide tree"): handing over
-/// lone lanes saves up to 7 % of the instructions on incoherent rays and costs at most 0.2 %
-/// on coherent ones; handing over two or three lanes was worse.
+/// Default single-ray fallback thresholds: an interior subtree entered by at most this many
+/// lanes is finished one ray at a time. Measured (PERF.md, "Packets on the wide tree"):
+/// handing over lone lanes saves up to 7 % of the instructions on incoherent rays and costs at
+/// most 0.2 % on coherent ones; handing over two or three lanes was worse.
 /// The threshold for packets of 4 rays or fewer.
 pub const FALLBACK_4: u32 = 1;
 /// The threshold for packets of 8 and 16 rays.

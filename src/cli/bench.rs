@@ -48,8 +48,8 @@ pub struct BenchArgs {
     #[arg(long, value_name = "N", default_value = "1",
           value_parser = |s: &str| parse_in_range("--threads", s, 1, 1024).map(|n| n as usize))]
     threads: usize,
-    /// Packets hand interior subtrees entered by <= N lanes to single rays (default: the tuned value;
-    /// for measuring it)
+    /// Packets hand interior subtrees entered by <= N lanes to single rays (default: the tuned
+    /// value; for measuring it)
     #[arg(long = "packet-fallback", value_name = "N",
           value_parser = |s: &str| parse_in_range("--packet-fallback", s, 0, 8))]
     fallback: Option<u32>,

@@ -3,9 +3,10 @@
 //! least expected traversal cost, by the dynamic programme of Ylitie, Karras and Laine (2017,
 //! "Efficient incoherent ray traversal on GPUs through compressed wide BVHs"), described, not
 //! copied, with the leaves given: every binary subtree of at most `max_leaf` triangles is one
-//! leaf, unless rays start inside its box (`OriginBoxes`: a room's walls). For each binary node and each number of slots k it finds the cheapest way to hand its
-//! subtree to its wide parent as exactly k children; a wide node costs its box's area (a random
-//! ray's odds of visiting it) times `NODE_COST + SLOT_COST` per used slot.
+//! leaf, unless rays start inside its box (`OriginBoxes`: a room's walls). For each binary
+//! node and each number of slots k it finds the cheapest way to hand its subtree to its wide
+//! parent as exactly k children; a wide node costs its box's area (a random ray's odds of
+//! visiting it) times `NODE_COST + SLOT_COST` per used slot.
 //!
 //! Leaves are contiguous triangle ranges of the shared triangle store. Because a binary
 //! subtree's triangles are contiguous (leaves are in depth-first order), a subtree of at most

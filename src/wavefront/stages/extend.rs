@@ -56,11 +56,12 @@ impl Coherence {
 pub const PACKET: usize = if cfg!(target_feature = "avx512f") { 16 } else { 8 };
 
 /// Single-ray fallback threshold of bounce packets: an interior subtree entered by at most this
-/// many lanes is finished one ray at a time (leaves never are: `traverse_packet`). Bounce rays diverge, so a 16-ray packet reaches most
-/// subtrees with few lanes left, and handing over up to 3 of them took 1-2% off CBbunny's `-m 5`
-/// renders on Zen 4; 8-ray packets (and camera packets) keep the traversal's default, which
-/// 3 made slower (PERF.md, "Whole renders", "Misses out of the queue, one wall's normals read
-/// once").
+/// many lanes is finished one ray at a time (leaves never are: `traverse_packet`). Bounce rays
+/// diverge, so a 16-ray packet reaches most subtrees with few lanes left, and handing over up
+/// to 3 of them took 1-2% off CBbunny's `-m 5` renders on Zen 4; 8-ray packets (and camera
+/// packets) keep the traversal's default, which 3 made slower (PERF.md, "Whole renders",
+/// "Misses out of the queue, one wall's normals read once"; 2 and 5 re-measured in "Rooms split
+/// into walls").
 pub const BOUNCE_FALLBACK: u32 = if PACKET >= 16 { 3 } else { 1 };
 
 /// Packet width for camera rays and the shadow rays and probes of their hits: 16 rays in every
