@@ -28,8 +28,7 @@ fn bits(pixels: &[Vec3]) -> Vec<u32> {
 /// did less traversal work where the scene has emitters (so the path was taken).
 #[test]
 fn emission_only_rays_give_the_same_image_with_the_emitters_first() {
-    let mut scenes = common::all_course_scenes();
-    scenes.push(std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/cornell.dae"));
+    let scenes = common::course_scenes_and_cornell();
     let mut cheaper = 0;
     for path in &scenes {
         let scene = pathtracer::scene::collada::load(path).unwrap();
@@ -37,17 +36,7 @@ fn emission_only_rays_give_the_same_image_with_the_emitters_first() {
         let has_emitters = scene.materials.iter().any(|m| m.emission() != Vec3::ZERO);
         let runs = [(MIS, 1, 1), (MIS, 5, 2), (HEMISPHERE, 2, 1), (LIGHT, 5, 1), (LIGHT, 1, 1)];
         for (integrator, m, l) in runs {
-            let config = RenderConfig {
-                integrator,
-                width: 40,
-                height: 30,
-                spp: 8,
-                max_depth: m,
-                light_samples: l,
-                threads: 2,
-                seed: 7,
-                ..RenderConfig::default()
-            };
+            let config = common::small_render(integrator, m, l, 7);
             let (a, b) = render_both(&scene, &accel, config);
             let name = format!("{} {} -m {m}", path.display(), integrator.name());
             assert!(bits(&a.pixels) == bits(&b.pixels), "{name}: the image changed");

@@ -282,8 +282,7 @@ fn zero_light_samples_render_without_panicking() {
 fn diffuse_vertices_in_simd_lanes_give_the_same_image_as_one_by_one() {
     use pathtracer::accel::{Accel, AccelKind};
     use pathtracer::render::{render, RenderConfig};
-    let mut scenes = common::all_course_scenes();
-    scenes.push(std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/cornell.dae"));
+    let scenes = common::course_scenes_and_cornell();
     let mut laned_scenes = 0;
     // Per kind of scene light (area, point, directional, ambient): laned renders that had one.
     let mut laned_kinds = [0usize; 4];
@@ -295,17 +294,9 @@ fn diffuse_vertices_in_simd_lanes_give_the_same_image_as_one_by_one() {
         let integrators = |r| [(r, LIGHT), (r, MIS), (r, HEMISPHERE)];
         for ((m, l, adaptive), integrator) in runs.into_iter().flat_map(integrators) {
             let config = |lanes| RenderConfig {
-                integrator,
-                width: 40,
-                height: 30,
-                spp: 8,
-                max_depth: m,
-                light_samples: l,
                 adaptive,
-                threads: 2,
-                seed: 11,
                 shading_lanes: lanes,
-                ..RenderConfig::default()
+                ..common::small_render(integrator, m, l, 11)
             };
             let (a, b) = (
                 render(&scene, &accel, &config(true)).unwrap(),

@@ -128,6 +128,35 @@ pub fn render_pixels(
     render(scene, &accel, &config).unwrap().pixels
 }
 
+/// Every course scene, then the repository's `assets/cornell.dae`: the set that the
+/// whole-renderer comparisons (two ways of rendering, the same bytes) go through.
+pub fn course_scenes_and_cornell() -> Vec<PathBuf> {
+    let mut scenes = all_course_scenes();
+    scenes.push(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/cornell.dae"));
+    scenes
+}
+
+/// The small render those comparisons make: 40 x 30, 8 spp, 2 threads, `integrator` at depth
+/// `max_depth` with `light_samples` light samples and `seed`.
+pub fn small_render(
+    integrator: Integrator,
+    max_depth: u32,
+    light_samples: u32,
+    seed: u64,
+) -> RenderConfig {
+    RenderConfig {
+        integrator,
+        width: 40,
+        height: 30,
+        spp: 8,
+        max_depth,
+        light_samples,
+        threads: 2,
+        seed,
+        ..RenderConfig::default()
+    }
+}
+
 pub const LIGHT: Integrator = Integrator::Path(DirectLighting::LightSampling);
 pub const HEMISPHERE: Integrator = Integrator::Path(DirectLighting::Hemisphere);
 pub const MIS: Integrator = Integrator::Path(DirectLighting::Mis);
