@@ -67,6 +67,10 @@ pub struct RenderConfig {
     /// `false` traces them as other rays. Both give bit-identical images unless an emitter and
     /// another surface coincide exactly (tests/emitters_first.rs).
     pub emitters_first: bool,
+    /// Under light sampling and MIS, glossy vertices weigh their area-light samples against
+    /// their BSDF sample (`integrator` `path::weighs_area_lights`); `false` keeps plain light
+    /// sampling. Both converge to the same image (tests/glossy_mis.rs).
+    pub glossy_light_mis: bool,
 }
 
 impl Default for RenderConfig {
@@ -90,6 +94,7 @@ impl Default for RenderConfig {
             camera: None,
             packets: true,
             shading_lanes: true,
+            glossy_light_mis: true,
             emitters_first: true,
         }
     }
@@ -216,6 +221,7 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         sampler: config.sampler,
         packets: config.packets,
         shading_lanes: config.shading_lanes,
+        glossy_light_mis: config.glossy_light_mis,
         scene_epsilon: 1e-5 * bounds.diagonal().max(f32::MIN_POSITIVE),
     };
     // The image buffers first, so that an image too large for memory is an error before any

@@ -56,6 +56,9 @@ pub struct RenderContext<'a> {
     pub packets: bool,
     /// Surface vertices in SIMD lanes where the integrator allows it (`stages::shade`).
     pub shading_lanes: bool,
+    /// Light samples of area lights weighed against the BSDF sample at glossy vertices
+    /// (`path::weighs_area_lights`); `false`: plain light sampling everywhere (for tests).
+    pub glossy_light_mis: bool,
     /// Smallest offset for spawned rays: 1e-5 of the scene's bounding-box diagonal.
     pub scene_epsilon: f32,
 }

@@ -4,7 +4,8 @@
 
 use super::diffuse::LANES;
 use super::lane_math::{cosine_hemisphere, gt, max, min, neg, normalize_or, Frame, Lanes, V, V3};
-use super::lights::{Rectangle, TriangleEmitter, CORNER_WEIGHT_FLOOR};
+use super::lights::TriangleEmitter;
+use super::rectangle::{Rectangle, CORNER_WEIGHT_FLOOR};
 use super::RenderContext;
 use crate::math::Vec3;
 use crate::scene::Light;
@@ -121,7 +122,7 @@ fn corner_weights(r: &Rectangle, p: V3, n: V3) -> [V; 4] {
     w.map(|x| V::select(usable, max(x * scale, floor), one))
 }
 
-/// `lights::sample_linear` lane by lane.
+/// `rectangle::sample_linear` lane by lane.
 #[inline(always)]
 fn sample_linear(xi: V, a: V, b: V) -> V {
     let x = xi * (a + b) / (a + ((V::splat(1.0) - xi) * a * a + xi * b * b).sqrt());

@@ -1,16 +1,17 @@
 //! What next-event estimation samples, and with which pdf.
 //!
 //! Two sources of light exist in a course scene (SCENE_FORMAT.md): *scene lights* (area, point,
-//! directional, ambient), which are not geometry and are reached only by light sampling, and
+//! directional, ambient), which are not geometry and are reached only by shadow rays, and
 //! *emissive geometry*, which camera and BSDF rays see. In the course's semantics light
 //! sampling samples the scene lights. In the emissive-geometry mode the emissive triangles and
 //! spheres themselves are the area lights (picked by power, sampled by area) and the scene's CGL
 //! area lights are left out, since in the course files they duplicate the emissive quads.
 //! A rectangular area light is sampled with a density fitted to the direct light's integrand
-//! at its corners (`Rectangle::sample`), emissive triangles uniformly by area.
+//! at its corners (`rectangle.rs`), emissive triangles uniformly by area.
 
 use std::f32::consts::PI;
 
+use super::rectangle::Rectangle;
 use crate::geometry::prim;
 use crate::math::Vec3;
 use crate::scene::{Light, Material, Scene};
@@ -269,126 +270,6 @@ pub fn sample_scene_light(light: &Light, p: Vec3, n: Vec3, u: [f32; 2]) -> Optio
     }
 }
 
-/// A rectangular area light: a corner, the two edges, the normal of its emitting side.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Rectangle {
-    pub(crate) corner: Vec3,
-    pub(crate) dim_x: Vec3,
-    pub(crate) dim_y: Vec3,
-    pub(crate) direction: Vec3,
-    pub(crate) area: f32,
-}
-
-/// Each corner's weight is at least this share of the largest, so that the density stays
-/// positive over the whole light (the noise moved by under 0.3% between 0.001 and 0.2).
-pub(crate) const CORNER_WEIGHT_FLOOR: f32 = 0.01;
-
-impl Rectangle {
-    /// The light `position + u dim_x + v dim_y` (u, v in [-1/2, 1/2]) facing `direction`.
-    pub(crate) fn new(position: Vec3, direction: Vec3, dim_x: Vec3, dim_y: Vec3) -> Rectangle {
-        Rectangle {
-            corner: position - 0.5 * dim_x - 0.5 * dim_y,
-            dim_x,
-            dim_y,
-            direction,
-            area: dim_x.cross(dim_y).length(),
-        }
-    }
-
-    /// A point of the light for `u` in [0, 1)^2 seen from `p` (shading normal `n`). Its
-    /// coordinates along the two edges are drawn independently, each with a density linear
-    /// between the weights of the light's two ends along that edge, where a corner's weight
-    /// is the direct light's integrand there, cos(receiver) cos(light) / distance^2 (a
-    /// separable form of the bilinear warp of Hart, Pharr, Mueller, Lopes, McGuire and Wyman
-    /// 2020, "Practical Product Sampling by Fitting and Composing Warps", which left the same
-    /// noise on the course scenes with two independent draws instead of a chained one). Far
-    /// from the light the weights are equal and this is uniform area sampling; close to it,
-    /// or seen at a slant, the samples go where the light arrives. Any positive density gives
-    /// the same expected value and the returned pdf is the exact one, so the image converges
-    /// to the same result.
-    pub(crate) fn sample(
-        &self,
-        radiance: Vec3,
-        p: Vec3,
-        n: Vec3,
-        u: [f32; 2],
-    ) -> Option<LightSample> {
-        let [w00, w10, w01, w11] = self.corner_weights(p, n);
-        let (a, b, c, d) = (w00 + w01, w10 + w11, w00 + w10, w01 + w11);
-        let (s, t) = (sample_linear(u[0], a, b), sample_linear(u[1], c, d));
-        // The density over the light: the product of the two linear densities.
-        let weight = ((1.0 - s) * a + s * b) * ((1.0 - t) * c + t * d);
-        let norm = (0.5 * (a + b)) * (0.5 * (c + d));
-        let q = self.corner + s * self.dim_x + t * self.dim_y;
-        let v = q - p;
-        let dist = v.length();
-        let wi = v / dist;
-        // One-sided: it radiates only into the half-space `direction` points to.
-        let cos_l = -self.direction.dot(wi);
-        (cos_l > 0.0 && dist > 0.0 && self.area > 0.0).then(|| LightSample {
-            wi,
-            dist,
-            li: radiance,
-            pdf: weight * (dist * dist) / (norm * (self.area * cos_l)),
-            cos_light: cos_l,
-        })
-    }
-
-    /// The corners' weights (00, 10, 01, 11: steps along `dim_x`, `dim_y`), cos(receiver)+ /
-    /// distance^4: the light's cosine at a corner is its distance from `p`'s ... plane over
-    /// the corner's distance, and that numerator is the same at all four corners, so it drops
-    /// out. They are divided by the largest and raised to `CORNER_WEIGHT_FLOOR`; all are 1
-    /// when no corner is above the receiver's horizon (every sample is then rejected by its
-    /// cosine) or the largest is not finite (a receiver within 1e-9 of a corner).
-    fn corner_weights(&self, p: Vec3, n: Vec3) -> [f32; 4] {
-        let c10 = self.corner + self.dim_x;
-        let v = [self.corner, c10, self.corner + self.dim_y, c10 + self.dim_y].map(|q| q - p);
-        let r2 = v.map(|v| v.dot(v));
-        // 1 / r^2 of two corners from one division (an overflow gives zero or NaN weights,
-        // which the floor below replaces).
-        let (i01, i23) = (1.0 / (r2[0] * r2[1]), 1.0 / (r2[2] * r2[3]));
-        let inv = [r2[1] * i01, r2[0] * i01, r2[3] * i23, r2[2] * i23];
-        let w: [f32; 4] = std::array::from_fn(|k| max_of(v[k].dot(n), 0.0) * inv[k] * inv[k]);
-        // Scaled to the largest, so that the draws' squares neither overflow nor underflow
-        // whatever the scene's units.
-        let largest = max_of(max_of(w[0], w[1]), max_of(w[2], w[3]));
-        if largest > 0.0 && largest < f32::INFINITY {
-            let scale = 1.0 / largest;
-            w.map(|x| max_of(x * scale, CORNER_WEIGHT_FLOOR))
-        } else {
-            [1.0; 4]
-        }
-    }
-}
-
-/// x in [0, 1) with density proportional to (1 - x) a + x b (a, b > 0), for `xi` in [0, 1):
-/// the inverse of its CDF, written without dividing by b - a.
-#[inline]
-pub(crate) fn sample_linear(xi: f32, a: f32, b: f32) -> f32 {
-    let x = xi * (a + b) / (a + ((1.0 - xi) * a * a + xi * b * b).sqrt());
-    min_of(x, 1.0 - f32::EPSILON / 2.0)
-}
-
-/// `if a > b { a } else { b }`, as the lanes compute it.
-#[inline]
-fn max_of(a: f32, b: f32) -> f32 {
-    if b < a {
-        a
-    } else {
-        b
-    }
-}
-
-/// `if a < b { a } else { b }`, as the lanes compute it.
-#[inline]
-fn min_of(a: f32, b: f32) -> f32 {
-    if a < b {
-        a
-    } else {
-        b
-    }
-}
-
 fn emitter_radiance(scene: &Scene, e: Emitter) -> Vec3 {
     let m = match e {
         Emitter::Triangle(i) => scene.triangle_materials[i as usize],
@@ -436,6 +317,7 @@ fn sample_emitter_point(scene: &Scene, e: Emitter, u1: f32, u2: f32) -> (Vec3, V
 
 #[cfg(test)]
 mod tests {
+    use super::super::rectangle::sample_linear;
     use super::*;
 
     #[test]

@@ -19,11 +19,12 @@ pub mod lights;
 mod microfacet_lanes;
 mod path;
 mod queues;
+mod rectangle;
 
 pub use context::{emission_seen, surface_material, RenderContext, ShadeOutputs, Surface};
 pub use emitter_accel::EmitterAccel;
 pub use lights::LightSet;
-pub use path::{DirectLighting, DrawLayout};
+pub use path::{is_glossy, weighs_area_lights, DirectLighting, DrawLayout};
 pub use queues::{PathState, RayQueue, ShadowQueue};
 
 use crate::math::{Ray, Vec3};

@@ -9,18 +9,23 @@
 //!    emitter is counted twice.
 //! 2. If k < max_depth, direct light: light sampling queues shadow rays, uniform hemisphere
 //!    sampling queues emission probes (closest-hit rays that add what they see), MIS queues
-//!    shadow rays to points on emissive geometry.
+//!    shadow rays to points on emissive geometry. At glossy vertices light sampling weighs the
+//!    area lights' samples against the BSDF sample, which queues a shadow ray of its own where
+//!    its direction meets an area light (`weighs_area_lights`); that vertex samples its BSDF
+//!    also at the last depth.
 //! 3. If k + 1 < max_depth (or = max_depth under MIS, for the BSDF half of the MIS pair, and at
 //!    specular vertices, whose next hit may see an emitter) a BSDF sample continues the path,
 //!    with Russian roulette (survival probability = the path throughput's largest channel) from
 //!    the ray of depth `RR_START_DEPTH` on.
 
+use super::bsdf::BsdfSample;
 use super::bsdf::{self, UNIFORM_HEMISPHERE_PDF};
 use super::lights::{sample_scene_light, LightSample};
+use super::rectangle::Rectangle;
 use super::{PathState, RenderContext, ShadeOutputs, Surface};
 use crate::math::{orthonormal_basis, Ray, Vec3};
 use crate::sampler::{Decision, DrawBatch, Numbers};
-use crate::scene::Material;
+use crate::scene::{Light, Material};
 
 /// How direct light is estimated at each path vertex.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -139,6 +144,25 @@ fn any_vertex_continues(direct: DirectLighting, ctx: &RenderContext, depth: u32)
     depth + 1 < ctx.max_depth
         || direct == DirectLighting::Mis
         || ctx.scene.materials.iter().any(specular)
+        || (weighs_area_lights(direct, ctx) && ctx.scene.materials.iter().any(is_glossy))
+}
+
+/// Whether light samples of the scene's area lights are weighed against the BSDF sample at
+/// glossy vertices (`is_glossy`): under light sampling, when the scene has one (MIS samples the
+/// emissive geometry instead, `LightSet::emissive_geometry`). Light sampling alone finds a
+/// smooth conductor's reflection of a large light only in rare, bright samples; BSDF sampling
+/// finds it. Both estimate the same light, so the image converges to the same result (PERF.md,
+/// "Glossy vertices weigh light samples against the BSDF").
+pub fn weighs_area_lights(direct: DirectLighting, ctx: &RenderContext) -> bool {
+    direct == DirectLighting::LightSampling
+        && ctx.glossy_light_mis
+        && ctx.lights.scene_lights.iter().any(|l| matches!(l, Light::Area { .. }))
+}
+
+/// The surfaces whose light samples are weighed against their BSDF sample: microfacet
+/// conductors. Diffuse ones keep plain light sampling, whose noise a BSDF sample hardly lowers.
+pub fn is_glossy(m: &Material) -> bool {
+    matches!(m, Material::Microfacet { .. })
 }
 
 /// Uniform hemisphere sampling takes `-l` directions per scene light (at least one light).
@@ -198,11 +222,12 @@ pub fn shade_hit(
         numbers,
     };
 
+    let weigh = is_glossy(material) && weighs_area_lights(direct, ctx);
     if bsdf::has_smooth_lobe(material) {
         match direct {
-            DirectLighting::LightSampling => sample_scene_lights(ctx, &v, layout, path, out),
+            DirectLighting::LightSampling => sample_scene_lights(ctx, &v, layout, weigh, path, out),
             DirectLighting::Hemisphere => queue_hemisphere_probes(ctx, &v, layout, path, out),
-            DirectLighting::Mis => sample_emissive_geometry(ctx, &v, layout, path, out),
+            DirectLighting::Mis => sample_emissive_geometry(ctx, &v, layout, weigh, path, out),
         }
     }
 
@@ -212,8 +237,18 @@ pub fn shade_hit(
     let last = depth + 1 == ctx.max_depth;
     let continues = depth + 1 < ctx.max_depth
         || (last && (direct == DirectLighting::Mis || !bsdf::has_smooth_lobe(material)));
+    if !continues && !weigh {
+        return;
+    }
+    let (sample, roulette) = sample_bsdf(&v, layout);
+    let Some(s) = sample else {
+        return;
+    };
+    if weigh {
+        queue_area_lights_hit(ctx, &v, &s, path, out);
+    }
     if continues {
-        continue_path(ctx, &v, layout, path, paths, out);
+        continue_path(ctx, &v, s, roulette, path, paths, out);
     }
 }
 
@@ -260,22 +295,66 @@ fn power_heuristic(nf: f32, f: f32, ng: f32, g: f32) -> f32 {
 }
 
 /// Course light sampling: every scene light, `-l` samples for non-delta lights, 1 for delta.
+/// `weigh`: area lights' samples weighed against the BSDF sample (`weighs_area_lights`).
 fn sample_scene_lights(
     ctx: &RenderContext,
     v: &Vertex,
     layout: &DrawLayout,
+    weigh: bool,
     path: u32,
     out: &mut ShadeOutputs,
 ) {
     let mut slot = layout.light;
     for light in &ctx.lights.scene_lights {
         let n = if light.is_delta() { 1 } else { ctx.light_samples };
+        let rectangle = area_rectangle(light).filter(|_| weigh);
         for _ in 0..n {
             let u = v.numbers.get(slot);
             slot += 1;
-            if let Some(ls) = sample_scene_light(light, v.p, v.frame.n, u) {
-                queue_shadow_ray(ctx, v, &ls, 1.0 / n as f32, path, out);
-            }
+            let Some(ls) = sample_scene_light(light, v.p, v.frame.n, u) else {
+                continue;
+            };
+            let scale = match rectangle {
+                Some((r, _)) => {
+                    let bsdf_pdf = bsdf::pdf(v.material, v.wo, v.frame.to_local(ls.wi));
+                    power_heuristic(n as f32, r.solid_angle_pdf(&ls), 1.0, bsdf_pdf) / n as f32
+                }
+                None => 1.0 / n as f32,
+            };
+            queue_shadow_ray(ctx, v, &ls, scale, path, out);
+        }
+    }
+}
+
+/// An area light's rectangle and radiance.
+fn area_rectangle(light: &Light) -> Option<(Rectangle, Vec3)> {
+    match *light {
+        Light::Area { position, direction, dim_x, dim_y, radiance } => {
+            Some((Rectangle::new(position, direction, dim_x, dim_y), radiance))
+        }
+        _ => None,
+    }
+}
+
+/// The BSDF half of the glossy vertex's weighing (`weighs_area_lights`): where the BSDF
+/// sample's direction meets an area light, a shadow ray to that point carries the light that
+/// BSDF sampling finds there, weighed by the power heuristic against the light's `-l` samples.
+fn queue_area_lights_hit(
+    ctx: &RenderContext,
+    v: &Vertex,
+    s: &BsdfSample,
+    path: u32,
+    out: &mut ShadeOutputs,
+) {
+    if !(s.pdf > 0.0 && s.pdf < f32::INFINITY) {
+        return;
+    }
+    let dir = v.frame.to_world(s.wi).normalize();
+    for (r, radiance) in ctx.lights.scene_lights.iter().filter_map(area_rectangle) {
+        if let Some(hit) = r.hit_by(radiance, v.p, v.frame.n, dir) {
+            let w = power_heuristic(1.0, s.pdf, ctx.light_samples as f32, hit.pdf);
+            // As a light sample drawn with the BSDF's pdf: the same shadow ray and estimate.
+            queue_shadow_ray(ctx, v, &LightSample { pdf: s.pdf, ..hit }, w, path, out);
         }
     }
 }
@@ -286,10 +365,11 @@ fn sample_emissive_geometry(
     ctx: &RenderContext,
     v: &Vertex,
     layout: &DrawLayout,
+    weigh: bool,
     path: u32,
     out: &mut ShadeOutputs,
 ) {
-    sample_scene_lights(ctx, v, layout, path, out);
+    sample_scene_lights(ctx, v, layout, weigh, path, out);
     if !ctx.lights.has_emitters() {
         return;
     }
@@ -365,24 +445,28 @@ fn queue_hemisphere_probes(
     }
 }
 
-/// BSDF-samples the next direction, updates the throughput, and queues the bounce ray.
+/// The vertex's BSDF sample, and the roulette's number.
+fn sample_bsdf(v: &Vertex, layout: &DrawLayout) -> (Option<BsdfSample>, f32) {
+    let [u1, u2] = v.numbers.get(layout.bsdf);
+    // The lobe choice and the roulette share one draw, planned only at depths and in scenes
+    // where either can apply.
+    let [lobe, roulette] = layout.lobe.map_or([0.0, 0.0], |k| v.numbers.get(k));
+    (bsdf::sample(v.material, v.wo, [u1, u2, lobe]), roulette)
+}
+
+/// Continues the path along the BSDF sample `s`: updates the throughput, plays the roulette
+/// (with the number `roulette`), and queues the bounce ray.
 fn continue_path(
     ctx: &RenderContext,
     v: &Vertex,
-    layout: &DrawLayout,
+    s: BsdfSample,
+    roulette: f32,
     path: u32,
     paths: &mut PathState,
     out: &mut ShadeOutputs,
 ) {
     let pi = path as usize;
-    let [u1, u2] = v.numbers.get(layout.bsdf);
-    // The lobe choice and the roulette share one draw, planned only at depths and in scenes
-    // where either can apply.
     let roulette_applies = v.depth + 1 >= RR_START_DEPTH;
-    let [lobe, roulette] = layout.lobe.map_or([0.0, 0.0], |k| v.numbers.get(k));
-    let Some(s) = bsdf::sample(v.material, v.wo, [u1, u2, lobe]) else {
-        return;
-    };
     let mut throughput = v.throughput * s.weight;
     if roulette_applies {
         let q = throughput.max_element().min(1.0);
