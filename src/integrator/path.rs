@@ -18,8 +18,7 @@
 //!    with Russian roulette (survival probability = the path throughput's largest channel) from
 //!    the ray of depth `RR_START_DEPTH` on.
 
-use super::bsdf::BsdfSample;
-use super::bsdf::{self, UNIFORM_HEMISPHERE_PDF};
+use super::bsdf::{self, BsdfSample, UNIFORM_HEMISPHERE_PDF};
 use super::lights::{sample_scene_light, LightSample};
 use super::rectangle::Rectangle;
 use super::{PathState, RenderContext, ShadeOutputs, Surface};
@@ -227,7 +226,7 @@ pub fn shade_hit(
         match direct {
             DirectLighting::LightSampling => sample_scene_lights(ctx, &v, layout, weigh, path, out),
             DirectLighting::Hemisphere => queue_hemisphere_probes(ctx, &v, layout, path, out),
-            DirectLighting::Mis => sample_emissive_geometry(ctx, &v, layout, weigh, path, out),
+            DirectLighting::Mis => sample_emissive_geometry(ctx, &v, layout, path, out),
         }
     }
 
@@ -365,11 +364,11 @@ fn sample_emissive_geometry(
     ctx: &RenderContext,
     v: &Vertex,
     layout: &DrawLayout,
-    weigh: bool,
     path: u32,
     out: &mut ShadeOutputs,
 ) {
-    sample_scene_lights(ctx, v, layout, weigh, path, out);
+    // The CGL area lights are left out here (`LightSet::emissive_geometry`): nothing to weigh.
+    sample_scene_lights(ctx, v, layout, false, path, out);
     if !ctx.lights.has_emitters() {
         return;
     }
