@@ -115,3 +115,30 @@ fn mis_renders_do_not_weigh_area_lights() {
     );
     assert!(a.pixels == b.pixels && a.stats == b.stats);
 }
+
+/// The weighing keeps the image a function of the seed alone: the same bytes for 1, 2 and 3
+/// threads.
+#[test]
+fn weighed_renders_are_the_same_bytes_for_any_thread_count() {
+    let Some(path) = common::course_scene("sky/CBspheres_microfacet_al_ag.dae") else {
+        return;
+    };
+    let scene = pathtracer::scene::collada::load(&path).unwrap();
+    let accel = Accel::build(&scene, AccelKind::Bvh);
+    let run = |threads| {
+        let config = RenderConfig {
+            integrator: LIGHT,
+            width: 37,
+            height: 29,
+            spp: 4,
+            max_depth: 4,
+            threads,
+            seed: 9,
+            ..RenderConfig::default()
+        };
+        render(&scene, &accel, &config).unwrap().pixels
+    };
+    let one = run(1);
+    assert!(one == run(2) && one == run(3));
+    assert!(one.iter().all(|p| p.is_finite()) && one.iter().any(|p| p.max_element() > 0.0));
+}
