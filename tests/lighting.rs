@@ -364,9 +364,6 @@ fn microfacet_vertices_in_simd_lanes_give_the_same_image_as_one_by_one() {
             threads: 2,
             seed: 5,
             shading_lanes: lanes,
-            // Under light sampling glossy vertices otherwise weigh the area light against their
-            // BSDF sample one by one (tests/glossy_mis.rs); here the lanes are under test.
-            glossy_light_mis: false,
             ..RenderConfig::default()
         };
         let (a, b) = (

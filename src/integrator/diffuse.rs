@@ -20,7 +20,8 @@ use super::diffuse_out::ray_records;
 pub use super::diffuse_out::{
     queue_all_lanes, queue_lane, BounceLanes, DiffuseOutputs, ShadowLanes,
 };
-use super::path::{hemisphere_draws, DirectLighting, DrawLayout, RR_START_DEPTH};
+use super::glossy_lanes::{area_light_hits, light_sample_scale};
+use super::path::{self, hemisphere_draws, DirectLighting, DrawLayout, RR_START_DEPTH};
 use super::RenderContext;
 use crate::geometry::prim;
 use crate::math::{flat_coordinates, Hit, Ray, Vec3};
@@ -370,6 +371,8 @@ fn shade_lanes<const MICRO: bool, const DELTA: bool>(
     let v = vertex(lanes, if DELTA { lanes.delta.bits() } else { 0 });
     let micro = if MICRO { lanes.micro.lanes() } else { None };
     let micro = micro.as_ref();
+    // Glossy vertices weigh area lights against their BSDF sample (`path::weighs_area_lights`).
+    let weigh = micro.filter(|_| path::weighs_area_lights(direct, ctx));
     // The chunk's numbers sit in one block of the batch (`[slot][coordinate][lane]`, the
     // chunk's queue entries in its lanes); lane l reads the block lane of its vertex, and in
     // queue order (nearly always) a coordinate's lanes are one vector load.
@@ -401,9 +404,14 @@ fn shade_lanes<const MICRO: bool, const DELTA: bool>(
         for light in &ctx.lights.scene_lights {
             let n = if light.is_delta() { 1 } else { ctx.light_samples };
             let scale = V::splat(1.0 / n as f32);
+            let rectangle = weigh.and(path::area_rectangle(light));
             for _ in 0..n {
                 let (u1, u2) = (number(slot, 0), number(slot, 1));
                 let ls = sample_scene_light(light, v.p, &v.frame, u1, u2);
+                let scale = match (weigh, &rectangle) {
+                    (Some(m), Some((r, _))) => light_sample_scale(r, m, &v.frame, v.wo, &ls, n),
+                    _ => scale,
+                };
                 out.shadows.push(shadow_ray(ctx, &v, micro, &ls, scale));
                 slot += 1;
             }
@@ -428,6 +436,13 @@ fn shade_lanes<const MICRO: bool, const DELTA: bool>(
                 a * a / (a * a + bsdf_pdf * bsdf_pdf),
             );
             out.shadows.push(shadow_ray(ctx, &v, micro, &ls, w / V::splat(n as f32)));
+        }
+    }
+    if let Some(m) = weigh {
+        let (u1, u2, lights) = (number(layout.bsdf, 0), number(layout.bsdf, 1), &ctx.lights);
+        let vertex = (v.p, &v.frame, v.wo);
+        for (ls, w) in area_light_hits(&lights.scene_lights, ctx.light_samples, m, vertex, u1, u2) {
+            out.shadows.push(shadow_ray(ctx, &v, micro, &ls, w));
         }
     }
     out.bounce.valid = 0;

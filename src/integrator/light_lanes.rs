@@ -106,7 +106,7 @@ fn sample_rectangle(r: &Rectangle, radiance: Vec3, p: V3, n: V3, u0: V, u1: V) -
 
 /// `Rectangle::corner_weights` lane by lane.
 #[inline(always)]
-fn corner_weights(r: &Rectangle, p: V3, n: V3) -> [V; 4] {
+pub(super) fn corner_weights(r: &Rectangle, p: V3, n: V3) -> [V; 4] {
     let zero = V::splat(0.0);
     let c10 = r.corner + r.dim_x;
     let v = [r.corner, c10, r.corner + r.dim_y, c10 + r.dim_y].map(|q| V3::splat(q).sub(p));

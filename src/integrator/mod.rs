@@ -13,6 +13,7 @@ mod delta_lanes;
 pub mod diffuse;
 mod diffuse_out;
 mod emitter_accel;
+mod glossy_lanes;
 mod lane_math;
 mod light_lanes;
 pub mod lights;

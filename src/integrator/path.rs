@@ -326,7 +326,7 @@ fn sample_scene_lights(
 }
 
 /// An area light's rectangle and radiance.
-fn area_rectangle(light: &Light) -> Option<(Rectangle, Vec3)> {
+pub(super) fn area_rectangle(light: &Light) -> Option<(Rectangle, Vec3)> {
     match *light {
         Light::Area { position, direction, dim_x, dim_y, radiance } => {
             Some((Rectangle::new(position, direction, dim_x, dim_y), radiance))

@@ -34,7 +34,8 @@
 //! Queue sizes: a tile of 16 x 16 pixels with `spp` samples holds at most 256 x `spp` paths;
 //! samples are processed in batches of at most `SAMPLE_BATCH` per pixel, so a ray queue never
 //! holds more than 256 x 16 = 4096 rays (4096 x 36 bytes = 144 KiB: it stays in L2). Each path
-//! vertex may queue one shadow ray per light sample (`-l` per area light), so the batch shrinks
+//! vertex may queue one shadow ray per light sample (`-l` per area light, and at glossy vertices
+//! one more per area light, `path::weighs_area_lights`), so the batch shrinks
 //! until a shadow queue holds at most `SHADOW_QUEUE_CAP` rays (8192 x 48 bytes = 384 KiB; at
 //! `-l 32` the queue used to reach 6 MiB per tile). The extra camera rays of a tile's outline
 //! pixels are at most one per camera ray (`stages::generate`), so at most 4096 per pass.
@@ -51,8 +52,10 @@ pub use crate::integrator::{
 pub use stages::emitter_window;
 
 use crate::accel::TraceStats;
+use crate::integrator::{is_glossy, weighs_area_lights};
 use crate::math::{ExactRgb, Hit, Vec3};
 use crate::sampler::DrawBatch;
+use crate::scene::Light;
 
 /// Tile side in pixels.
 pub const TILE: u32 = 16;
@@ -74,7 +77,15 @@ fn sample_batch(ctx: &RenderContext) -> u32 {
         .map(|light| if light.is_delta() { 1 } else { l })
         .fold(if ctx.lights.has_emitters() { l } else { 0 }, u32::saturating_add);
     let hemisphere = (ctx.scene.lights.len().max(1) as u32).saturating_mul(l);
-    let per_vertex = sampled.max(hemisphere).max(1);
+    // Glossy vertices that weigh the area lights add one ray per area light their BSDF
+    // sample meets (`path::weighs_area_lights`).
+    let weighed = match ctx.integrator.direct_lighting() {
+        Some(d) if weighs_area_lights(d, ctx) && ctx.scene.materials.iter().any(is_glossy) => {
+            ctx.lights.scene_lights.iter().filter(|l| matches!(l, Light::Area { .. })).count()
+        }
+        _ => 0,
+    };
+    let per_vertex = sampled.saturating_add(weighed as u32).max(hemisphere).max(1);
     let pixels = TILE * TILE;
     (SHADOW_QUEUE_CAP / pixels.saturating_mul(per_vertex)).clamp(1, SAMPLE_BATCH)
 }

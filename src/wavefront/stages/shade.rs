@@ -5,7 +5,7 @@ use super::super::{PathState, RayQueue, RenderContext, ShadeOutputs, Surface};
 use crate::accel;
 use crate::geometry::prim;
 use crate::integrator::diffuse::{self, DiffuseLanes, DiffuseOutputs, LANES};
-use crate::integrator::{is_glossy, surface_material, weighs_area_lights};
+use crate::integrator::surface_material;
 use crate::math::{Hit, Vec3};
 use crate::sampler::DrawBatch;
 use crate::scene::{Material, NORMALS_PER_TRIANGLE};
@@ -62,7 +62,6 @@ pub fn shade(
     // Only where the normals outgrow the L2 cache: small scenes keep them there, and the
     // prefetch pass cost CBspheres_lambertian 1.7% more instructions.
     let prefetch = std::mem::size_of_val(ctx.triangle_normals) > accel::l2_cache_bytes();
-    let weigh_glossy = ctx.integrator.direct_lighting().is_some_and(|d| weighs_area_lights(d, ctx));
     let mut in_lanes = 0;
     for start in (0..rays.len()).step_by(LANES) {
         let chunk = start..(start + LANES).min(rays.len());
@@ -101,10 +100,7 @@ pub fn shade(
                         }
                         // Microfacet and specular surfaces join the same lanes (the diffuse ones
                         // above take the first arm, whose code stays as short as before).
-                        // Glossy vertices that weigh area lights against their BSDF
-                        // sample go one by one (`path::weighs_area_lights`).
                         None if lanes_apply
-                            && !(weigh_glossy && is_glossy(material))
                             && scratch.lanes.push_other(
                                 path,
                                 q,
