@@ -14,7 +14,8 @@ use crate::simd::{Arith, SimdF32};
 #[inline(always)]
 pub(super) fn power_heuristic(nf: V, f: V, ng: V, g: V) -> V {
     let (a, b) = (nf * f, ng * g);
-    let zero = V::splat(0.0);
+    // Through the trait: the 512-bit build's vector has its own `splat` too.
+    let zero = <V as SimdF32>::splat(0.0);
     V::select(a.simd_eq(zero) & b.simd_eq(zero), zero, a * a / (a * a + b * b))
 }
 
@@ -58,12 +59,11 @@ pub(super) fn area_light_hits<'a>(
     lights.iter().filter_map(move |light| match *light {
         Light::Area { position, direction, dim_x, dim_y, radiance } => {
             let r = Rectangle::new(position, direction, dim_x, dim_y);
-            let mut hit = hit_by(&r, radiance, p, frame_n, dir);
+            let hit = hit_by(&r, radiance, p, frame_n, dir);
             let ns = V::splat(light_samples as f32);
             let w = power_heuristic(V::splat(1.0), s.pdf, ns, hit.pdf);
-            hit.pdf = s.pdf;
-            hit.sampled = hit.sampled & usable;
-            Some((hit, w))
+            let sampled = hit.sampled & usable;
+            Some((LightLanes { pdf: s.pdf, sampled, ..hit }, w))
         }
         _ => None,
     })
