@@ -10,6 +10,16 @@ use pathtracer::integrator::Integrator;
 use pathtracer::render::{render, RenderConfig};
 use pathtracer::scene::Scene;
 
+/// The course's Cornell box with a smooth aluminium and a rough silver ball, and its BVH; `None`
+/// (skipped) without the course scenes.
+fn glossy_course_scene() -> Option<(Scene, Accel)> {
+    let path = common::course_scene("sky/CBspheres_microfacet_al_ag.dae")?;
+    let scene = pathtracer::scene::collada::load(&path).unwrap();
+    assert!(scene.materials.iter().any(pathtracer::integrator::is_glossy));
+    let accel = Accel::build(&scene, AccelKind::Bvh);
+    Some((scene, accel))
+}
+
 /// Each quadrant's mean over `seeds` renders: (mean of the means, its standard error).
 fn quadrant_means(
     scene: &Scene,
@@ -59,12 +69,9 @@ fn quadrant_means(
 /// spread (the balls' reflections of the light, plain sampling's fireflies).
 #[test]
 fn weighed_glossy_vertices_converge_to_plain_light_sampling() {
-    let Some(path) = common::course_scene("sky/CBspheres_microfacet_al_ag.dae") else {
+    let Some((scene, accel)) = glossy_course_scene() else {
         return;
     };
-    let scene = pathtracer::scene::collada::load(&path).unwrap();
-    assert!(scene.materials.iter().any(pathtracer::integrator::is_glossy));
-    let accel = Accel::build(&scene, AccelKind::Bvh);
     // Under MIS the emissive quads are the lights and the CGL area lights are left out, so only
     // light sampling weighs (the same bytes either way there).
     let integrator = LIGHT;
@@ -93,11 +100,9 @@ fn weighed_glossy_vertices_converge_to_plain_light_sampling() {
 /// vertex weighs: the same bytes with the weighing on and off.
 #[test]
 fn mis_renders_do_not_weigh_area_lights() {
-    let Some(path) = common::course_scene("sky/CBspheres_microfacet_al_ag.dae") else {
+    let Some((scene, accel)) = glossy_course_scene() else {
         return;
     };
-    let scene = pathtracer::scene::collada::load(&path).unwrap();
-    let accel = Accel::build(&scene, AccelKind::Bvh);
     let config = |weigh| RenderConfig {
         integrator: MIS,
         width: 40,
@@ -120,11 +125,9 @@ fn mis_renders_do_not_weigh_area_lights() {
 /// threads.
 #[test]
 fn weighed_renders_are_the_same_bytes_for_any_thread_count() {
-    let Some(path) = common::course_scene("sky/CBspheres_microfacet_al_ag.dae") else {
+    let Some((scene, accel)) = glossy_course_scene() else {
         return;
     };
-    let scene = pathtracer::scene::collada::load(&path).unwrap();
-    let accel = Accel::build(&scene, AccelKind::Bvh);
     let run = |threads| {
         let config = RenderConfig {
             integrator: LIGHT,

@@ -3,7 +3,7 @@
 //! and scalar code agree bit for bit.
 
 use super::lane_math::{gt, neg, Frame, V, V3};
-use super::light_lanes::{corner_weights, LightLanes};
+use super::light_lanes::{corner_weights, pdf_at, LightLanes};
 use super::microfacet_lanes::{self, MicrofacetLanes};
 use super::rectangle::Rectangle;
 use crate::math::Vec3;
@@ -79,7 +79,7 @@ fn plane_cos(r: &Rectangle, wi: V3) -> V {
 /// `Rectangle::hit_by` lane by lane; `sampled` masks the lanes whose ray meets the light.
 #[inline(always)]
 fn hit_by(r: &Rectangle, radiance: Vec3, p: V3, n: V3, dir: V3) -> LightLanes {
-    let (zero, one, half) = (V::splat(0.0), V::splat(1.0), V::splat(0.5));
+    let (zero, one) = (V::splat(0.0), V::splat(1.0));
     let normal = r.dim_x.cross(r.dim_y);
     let nv = V3::splat(normal);
     let dist = nv.dot(V3::splat(r.corner).sub(p)) / nv.dot(dir);
@@ -91,11 +91,7 @@ fn hit_by(r: &Rectangle, radiance: Vec3, p: V3, n: V3, dir: V3) -> LightLanes {
     let t = V3::splat(r.dim_x).cross(rel).dot(nv) / nn;
     let inside = s.simd_ge(zero) & s.simd_lt(one) & t.simd_ge(zero) & t.simd_lt(one);
     let cos_plane = plane_cos(r, dir);
-    let [w00, w10, w01, w11] = corner_weights(r, p, n);
-    let (a, b, c, d) = (w00 + w01, w10 + w11, w00 + w10, w01 + w11);
-    let weight = ((one - s) * a + s * b) * ((one - t) * c + t * d);
-    let norm = (half * (a + b)) * (half * (c + d));
-    let pdf = weight * (dist * dist) / (norm * (V::splat(r.area) * cos_l));
+    let pdf = pdf_at(r, corner_weights(r, p, n), s, t, dist, cos_l);
     LightLanes {
         finite: true,
         wi: dir,

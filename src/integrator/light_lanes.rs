@@ -81,12 +81,10 @@ pub(super) fn sample_scene_light(light: &Light, p: V3, frame: &Frame, u0: V, u1:
 /// `Rectangle::sample` lane by lane.
 #[inline(always)]
 fn sample_rectangle(r: &Rectangle, radiance: Vec3, p: V3, n: V3, u0: V, u1: V) -> LightLanes {
-    let (zero, one, half) = (V::splat(0.0), V::splat(1.0), V::splat(0.5));
-    let [w00, w10, w01, w11] = corner_weights(r, p, n);
-    let (a, b, c, d) = (w00 + w01, w10 + w11, w00 + w10, w01 + w11);
+    let zero = V::splat(0.0);
+    let w = corner_weights(r, p, n);
+    let [a, b, c, d] = edge_weights(w);
     let (s, t) = (sample_linear(u0, a, b), sample_linear(u1, c, d));
-    let weight = ((one - s) * a + s * b) * ((one - t) * c + t * d);
-    let norm = (half * (a + b)) * (half * (c + d));
     let q = V3::splat(r.corner).add(V3::splat(r.dim_x).scale(s)).add(V3::splat(r.dim_y).scale(t));
     let dv = q.sub(p);
     let dist = dv.dot(dv).sqrt();
@@ -98,10 +96,26 @@ fn sample_rectangle(r: &Rectangle, radiance: Vec3, p: V3, n: V3, u0: V, u1: V) -
         wi,
         dist,
         li: V3::splat(radiance),
-        pdf: weight * (dist * dist) / (norm * (area * cos_l)),
+        pdf: pdf_at(r, w, s, t, dist, cos_l),
         cos_light: cos_l,
         sampled: gt(cos_l, zero) & gt(dist, zero) & gt(area, zero),
     }
+}
+
+/// `rectangle::edge_weights` lane by lane.
+#[inline(always)]
+fn edge_weights([w00, w10, w01, w11]: [V; 4]) -> [V; 4] {
+    [w00 + w01, w10 + w11, w00 + w10, w01 + w11]
+}
+
+/// `Rectangle::pdf_at` lane by lane.
+#[inline(always)]
+pub(super) fn pdf_at(r: &Rectangle, w: [V; 4], s: V, t: V, dist: V, cos_l: V) -> V {
+    let (one, half) = (V::splat(1.0), V::splat(0.5));
+    let [a, b, c, d] = edge_weights(w);
+    let weight = ((one - s) * a + s * b) * ((one - t) * c + t * d);
+    let norm = (half * (a + b)) * (half * (c + d));
+    weight * (dist * dist) / (norm * (V::splat(r.area) * cos_l))
 }
 
 /// `Rectangle::corner_weights` lane by lane.
