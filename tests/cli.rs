@@ -571,3 +571,23 @@ fn every_command_has_a_help() {
     assert_eq!(lines[0], format!("pathtracer {}", env!("CARGO_PKG_VERSION")), "{version}");
     assert!(lines.len() == 2 && lines[1].starts_with("isa: "), "{version}");
 }
+
+#[test]
+fn bench_times_the_fastest_of_its_builds() {
+    let cornell = cornell();
+    let s = cornell.to_str().unwrap();
+    let args = ["bench", s, "--ray-set", "shadow", "--traversal", "single", "--reps", "1"];
+    let mut ok = args.to_vec();
+    ok.extend(["--build-reps", "4", "--json"]);
+    let out = pathtracer(&ok);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let record: serde_json::Value =
+        serde_json::from_slice(out.stdout.split(|&b| b == b'\n').next().unwrap()).unwrap();
+    let ms = record["build_ms"].as_f64().unwrap();
+    assert!(ms > 0.0 && ms.is_finite(), "build_ms {ms}");
+    for bad in ["0", "1001", "x"] {
+        let mut args = args.to_vec();
+        args.extend(["--build-reps", bad]);
+        assert_one_line_error(&pathtracer(&args), "--build-reps");
+    }
+}
