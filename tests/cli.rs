@@ -573,7 +573,7 @@ fn every_command_has_a_help() {
 }
 
 #[test]
-fn bench_times_the_fastest_of_its_builds() {
+fn bench_takes_build_reps_and_rejects_bad_counts() {
     let cornell = cornell();
     let s = cornell.to_str().unwrap();
     let args = ["bench", s, "--ray-set", "shadow", "--traversal", "single", "--reps", "1"];

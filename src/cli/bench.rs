@@ -1,6 +1,7 @@
 //! `pathtracer bench`: the standard ray benchmark of `../shared/docs/BENCHMARK.md`.
 
 use std::path::{Path, PathBuf};
+use std::time::Duration;
 
 use clap::Args;
 
@@ -268,21 +269,31 @@ fn parse_percent(text: &str) -> Result<f64> {
     Ok(pct)
 }
 
-/// The checks of combinations; the scene's path.
 /// The structure of `scene` from the last of `reps` builds, and the fastest build's time in
-/// milliseconds. Each structure is dropped before the next build starts: one is alive at a
-/// time.
+/// milliseconds.
 fn best_build(scene: &scene::Scene, reps: usize) -> (Accel, f64) {
-    let mut accel = Accel::build(scene, AccelKind::Bvh);
-    let mut best = accel.build_time();
-    for _ in 1..reps {
-        drop(accel);
-        accel = Accel::build(scene, AccelKind::Bvh);
-        best = best.min(accel.build_time());
-    }
+    let (accel, best) = best_of(reps, || Accel::build(scene, AccelKind::Bvh), Accel::build_time);
     (accel, best.as_secs_f64() * 1e3)
 }
 
+/// The last of `reps` (at least one) results of `make`, and the least of their `time`s. Each
+/// result is dropped before the next is made: one is alive at a time.
+fn best_of<T>(
+    reps: usize,
+    mut make: impl FnMut() -> T,
+    time: impl Fn(&T) -> Duration,
+) -> (T, Duration) {
+    let mut last = make();
+    let mut best = time(&last);
+    for _ in 1..reps {
+        drop(last);
+        last = make();
+        best = best.min(time(&last));
+    }
+    (last, best)
+}
+
+/// The checks of combinations; the scene's path.
 fn check(mut a: BenchArgs) -> Result<(BenchArgs, PathBuf)> {
     let scene = a
         .scene
@@ -298,4 +309,39 @@ fn check(mut a: BenchArgs) -> Result<(BenchArgs, PathBuf)> {
         a.traversals = Traversal::ALL.to_vec();
     }
     Ok((a, scene))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::best_of;
+    use std::cell::Cell;
+    use std::time::Duration;
+
+    /// A result that counts how many of its kind are alive.
+    struct Counted<'a> {
+        alive: &'a Cell<u32>,
+        ms: u64,
+    }
+
+    impl Drop for Counted<'_> {
+        fn drop(&mut self) {
+            self.alive.set(self.alive.get() - 1);
+        }
+    }
+
+    #[test]
+    fn best_of_keeps_the_last_result_and_the_least_time_with_one_alive() {
+        let (alive, most) = (Cell::new(0), Cell::new(0));
+        let mut times = [5u64, 2, 7, 3].into_iter();
+        let make = || {
+            alive.set(alive.get() + 1);
+            most.set(most.get().max(alive.get()));
+            Counted { alive: &alive, ms: times.next().unwrap() }
+        };
+        let (last, best) = best_of(4, make, |c| Duration::from_millis(c.ms));
+        assert_eq!((last.ms, best), (3, Duration::from_millis(2)));
+        assert_eq!((alive.get(), most.get()), (1, 1));
+        let (one, best) = best_of(1, || 9u64, |&ms| Duration::from_millis(ms));
+        assert_eq!((one, best), (9, Duration::from_millis(9)));
+    }
 }
