@@ -12,7 +12,7 @@ use crate::integrator::{EmitterAccel, Integrator};
 use crate::math::{ExactRgb, Vec3};
 use crate::sampler::SamplerKind;
 use crate::scene::{Camera, Scene};
-use crate::wavefront::{self, RenderContext, RenderStats, Tile, Workspace};
+use crate::wavefront::{self, RenderContext, RenderStats, StageTimes, Tile, Workspace};
 
 /// Extra camera rays per sample on emitter outlines unless `--edge-samples` says otherwise
 /// (PERF.md, "Whole renders": the noise they remove against the rays they cost).
@@ -71,6 +71,9 @@ pub struct RenderConfig {
     /// their BSDF sample (`integrator` `path::weighs_area_lights`); `false` keeps plain light
     /// sampling. Both converge to the same image (tests/glossy_mis.rs).
     pub glossy_light_mis: bool,
+    /// Time each stage of the render loop (`RenderOutput::stage_times`, `--stage-times`);
+    /// `false` leaves the clock unread and the times zero.
+    pub stage_times: bool,
 }
 
 impl Default for RenderConfig {
@@ -96,6 +99,7 @@ impl Default for RenderConfig {
             shading_lanes: true,
             glossy_light_mis: true,
             emitters_first: true,
+            stage_times: false,
         }
     }
 }
@@ -164,6 +168,9 @@ pub struct RenderOutput {
     pub sums: Vec<ExactRgb>,
     /// Rays and work counted over the render.
     pub stats: RenderStats,
+    /// Thread time in each stage of the loop, over all threads (zero unless
+    /// `RenderConfig::stage_times`).
+    pub stage_times: StageTimes,
     /// Wall time of the render loop (not the setup before it).
     pub time: Duration,
     /// The emitters' own tree (`integrator::EmitterAccel`), where the render built one: its
@@ -222,6 +229,7 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         packets: config.packets,
         shading_lanes: config.shading_lanes,
         glossy_light_mis: config.glossy_light_mis,
+        stage_times: config.stage_times,
         scene_epsilon: 1e-5 * bounds.diagonal().max(f32::MIN_POSITIVE),
     };
     // The image buffers first, so that an image too large for memory is an error before any
@@ -235,6 +243,7 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         sums: crate::error::try_filled_vec(kept, ExactRgb::default(), &size)?,
         window,
         stats: RenderStats::default(),
+        stage_times: StageTimes::default(),
     });
     let tiles: Vec<Tile> = wavefront::tiles(config.width, config.height)
         .into_iter()
@@ -271,10 +280,21 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         done.store(usize::MAX, Ordering::Relaxed);
         time
     });
-    let Image { pixels, samples, sums, stats, .. } =
+    let Image { pixels, samples, sums, stats, stage_times, .. } =
         image.into_inner().unwrap_or_else(|e| e.into_inner());
     let (width, height) = (config.width, config.height);
-    Ok(RenderOutput { width, height, pixels, samples, window, sums, stats, time, emitter_tree })
+    Ok(RenderOutput {
+        width,
+        height,
+        pixels,
+        samples,
+        window,
+        sums,
+        stats,
+        stage_times,
+        time,
+        emitter_tree,
+    })
 }
 
 /// Whether a render takes extra camera rays on emitter outlines at all: a path integrator,
@@ -327,6 +347,7 @@ struct Image {
     sums: Vec<ExactRgb>,
     window: Rect,
     stats: RenderStats,
+    stage_times: StageTimes,
 }
 
 impl Image {
@@ -342,6 +363,7 @@ impl Image {
         }
         // Integer counts: the sum does not depend on the order tiles finish in.
         self.stats.add(&r.stats);
+        self.stage_times.add(&r.stage_times);
     }
 }
 
@@ -349,6 +371,7 @@ struct TileResult {
     sums: Vec<ExactRgb>,
     samples: Vec<u32>,
     stats: RenderStats,
+    stage_times: StageTimes,
 }
 
 fn render_one_tile(ctx: &RenderContext, tile: Tile, ws: &mut Workspace) -> TileResult {
@@ -356,8 +379,10 @@ fn render_one_tile(ctx: &RenderContext, tile: Tile, ws: &mut Workspace) -> TileR
         sums: vec![ExactRgb::default(); tile.pixel_count()],
         samples: vec![0; tile.pixel_count()],
         stats: RenderStats::default(),
+        stage_times: StageTimes::default(),
     };
     wavefront::render_tile(ctx, tile, ws, &mut r.sums, &mut r.samples, &mut r.stats);
+    r.stage_times = ws.take_times();
     r
 }
 

@@ -591,3 +591,41 @@ fn bench_takes_build_reps_and_rejects_bad_counts() {
         assert_one_line_error(&pathtracer(&args), "--build-reps");
     }
 }
+
+/// `--stage-times` adds one line (each stage's thread time, each ray kind's speed, traversal's
+/// share) and changes nothing else: the same image bytes and statistics as without it.
+#[test]
+fn stage_times_add_a_line_and_change_nothing_else() {
+    let dir = scratch_dir("stage-times");
+    let scene = cornell();
+    let run = |flag: Option<&str>, name: &str| {
+        let png = dir.join(name);
+        let mut args = vec!["-t", "2", "-r", "48", "36", "-s", "4", "-m", "1", "--quiet", "-f"];
+        args.extend([png.to_str().unwrap(), scene.to_str().unwrap()]);
+        args.extend(flag);
+        let out = pathtracer(&args);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        (String::from_utf8_lossy(&out.stdout).into_owned(), std::fs::read(png).unwrap())
+    };
+    let (plain, plain_png) = run(None, "plain.png");
+    let (timed, timed_png) = run(Some("--stage-times"), "timed.png");
+    assert_eq!(plain_png, timed_png, "timing the stages changed the image");
+    let counts = |s: &str| s.lines().filter(|l| l.contains("BVH traced")).collect::<String>();
+    assert_eq!(counts(&plain), counts(&timed));
+    assert!(!plain.contains("Stage times"), "{plain}");
+    let line = timed.lines().find(|l| l.contains("Stage times")).expect("a stage line");
+    assert!(line.starts_with("[PathTracer] Stage times (thread seconds): camera rays "), "{line}");
+    // -m 1 has no bounces: their stage never runs.
+    assert!(line.contains("bounce hits 0.0000 (0.00 Mrays/s)"), "{line}");
+    let numbers: Vec<f64> = line
+        .split(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .filter_map(|w| w.trim_end_matches('.').parse().ok())
+        .collect();
+    // camera rays, camera hits (rate), shading, bounce hits (rate), shadow rays (rate),
+    // probes, pixel sums, traversal %, total.
+    assert_eq!(numbers.len(), 12, "{line}");
+    assert!(numbers.iter().all(|x| x.is_finite() && *x >= 0.0), "{line}");
+    let stages = [0, 1, 3, 4, 6, 8, 9].map(|i| numbers[i]).iter().sum::<f64>();
+    assert!((stages - numbers[11]).abs() <= 4e-4, "the stages add up to the total: {line}");
+    assert!(numbers[10] > 0.0 && numbers[10] <= 100.0, "{line}");
+}

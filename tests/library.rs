@@ -91,3 +91,39 @@ fn errors_are_typed_by_what_went_wrong() {
     assert!(matches!(&err, Error::Io { path, .. } if *path == image), "{err:?}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// An embedding program asks for stage times with `RenderConfig::stage_times`: without it the
+/// clock is never read (all zero); with it every stage the render ran has a time, and the
+/// image and counts are the same.
+#[test]
+fn stage_times_only_when_asked_and_the_image_unchanged() {
+    use pathtracer::{render, DirectLighting, Integrator, RenderConfig};
+    let scene = cornell();
+    let accel = Accel::new(&scene);
+    let config = |stage_times| RenderConfig {
+        width: 32,
+        height: 24,
+        spp: 4,
+        max_depth: 3,
+        threads: 2,
+        integrator: Integrator::Path(DirectLighting::LightSampling),
+        stage_times,
+        ..RenderConfig::default()
+    };
+    let plain = render(&scene, &accel, &config(false)).unwrap();
+    let timed = render(&scene, &accel, &config(true)).unwrap();
+    assert_eq!(plain.stage_times.total(), std::time::Duration::ZERO);
+    let t = timed.stage_times;
+    for (stage, time) in [
+        ("generate", t.generate),
+        ("camera hits", t.camera_hits),
+        ("bounce hits", t.bounce_hits),
+        ("shade", t.shade),
+        ("shadow rays", t.shadow_rays),
+        ("accumulate", t.accumulate),
+    ] {
+        assert!(time > std::time::Duration::ZERO, "{stage} ran but took no time");
+    }
+    assert_eq!(plain.pixels, timed.pixels);
+    assert_eq!(plain.stats, timed.stats);
+}

@@ -90,6 +90,9 @@ fn render_to_file(cli: &Cli) -> Result<()> {
         ));
     }
     print_render_stats(&mut report, &out.stats, out.time);
+    if cli.stage_times {
+        print_stage_times(&mut report, &out.stats, &out.stage_times);
+    }
     if cli.is_part() {
         report.print(format_args!("[PathTracer] Saving part to file: {}... ", output.display()));
         super::merge::write_part_file(&cli.scene, &output, config, cli.accel, &out)?;
@@ -149,6 +152,35 @@ pub(super) fn print_render_stats(
         per_ray(s.trace.node_tests + prim_tests),
         per_ray(s.trace.node_tests),
         per_ray(prim_tests)
+    ));
+}
+
+/// The `--stage-times` line: each stage's thread time, the speed of each kind of ray in its
+/// traversal stage, and traversal's share of the stages' time.
+fn print_stage_times(
+    report: &mut Report,
+    s: &pathtracer::wavefront::RenderStats,
+    t: &pathtracer::wavefront::StageTimes,
+) {
+    let secs = |d: std::time::Duration| d.as_secs_f64();
+    let rate = |rays: u64, d: std::time::Duration| rays as f64 / secs(d).max(1e-9) / 1e6;
+    let total = secs(t.total());
+    report.print(format_args!(
+        "[PathTracer] Stage times (thread seconds): camera rays {:.4}, camera hits {:.4} ({:.2} Mrays/s), \
+         shading {:.4}, bounce hits {:.4} ({:.2} Mrays/s), shadow rays {:.4} ({:.2} Mrays/s), \
+         probes {:.4}, pixel sums {:.4}; traversal {:.1}% of {:.4}.\n",
+        secs(t.generate),
+        secs(t.camera_hits),
+        rate(s.camera_rays, t.camera_hits),
+        secs(t.shade),
+        secs(t.bounce_hits),
+        rate(s.bounce_rays, t.bounce_hits),
+        secs(t.shadow_rays),
+        rate(s.shadow_rays, t.shadow_rays),
+        secs(t.probes),
+        secs(t.accumulate),
+        100.0 * secs(t.traversal()) / total.max(1e-12),
+        total
     ));
 }
 

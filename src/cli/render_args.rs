@@ -92,6 +92,10 @@ pub struct RenderArgs {
     /// No progress line
     #[arg(long, short = 'q', help_heading = "Our options")]
     pub quiet: bool,
+    /// After the statistics, the thread time of each stage (camera rays, closest hits,
+    /// shading, shadow rays, probes, pixel sums) and each kind of ray's speed in traversal
+    #[arg(long, help_heading = "Our options")]
+    pub stage_times: bool,
 
     /// Part K (0-based) of the plan of N parts (bands of pixels, sample ranges); written to a
     /// .ptpart file that pathtracer merge joins
@@ -122,6 +126,8 @@ pub(super) struct Cli {
     pub config: RenderConfig,
     /// `--bvh-node PATH`: the binary BVH node to preview.
     pub bvh_node: Option<String>,
+    /// `--stage-times`.
+    pub stage_times: bool,
 }
 
 impl RenderArgs {
@@ -137,6 +143,7 @@ impl RenderArgs {
             seed: self.seed.unwrap_or(defaults.seed),
             sampler: self.sampler.unwrap_or(defaults.sampler),
             progress: !self.quiet,
+            stage_times: self.stage_times,
             integrator: Integrator::Path(DirectLighting::LightSampling),
             samples: self.sample_range,
             // `--no-bvh` tests every primitive for every ray (the write-up's comparison), so
@@ -181,6 +188,7 @@ impl RenderArgs {
             accel: if self.no_bvh { AccelKind::BruteForce } else { AccelKind::Bvh },
             config,
             bvh_node: self.bvh_node,
+            stage_times: self.stage_times,
         };
         if self.hemisphere {
             if cli.config.integrator != Integrator::Path(DirectLighting::LightSampling) {

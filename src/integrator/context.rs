@@ -59,6 +59,8 @@ pub struct RenderContext<'a> {
     /// Light samples of area lights weighed against the BSDF sample at glossy vertices
     /// (`path::weighs_area_lights`); `false`: plain light sampling everywhere (for tests).
     pub glossy_light_mis: bool,
+    /// Time the stages of the loop (`wavefront::StageTimes`).
+    pub stage_times: bool,
     /// Smallest offset for spawned rays: 1e-5 of the scene's bounding-box diagonal.
     pub scene_epsilon: f32,
 }

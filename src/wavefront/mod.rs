@@ -40,6 +40,10 @@
 //! `-l 32` the queue used to reach 6 MiB per tile). The extra camera rays of a tile's outline
 //! pixels are at most one per camera ray (`stages::generate`), so at most 4096 per pass.
 //!
+//! With `RenderContext::stage_times` each stage call is timed (`StageTimes`: two clock reads
+//! per call, not per ray); the workspace keeps the times until the caller takes them
+//! (`Workspace::take_times`), and `--stage-times` prints them.
+//!
 //! The queues' SoA columns, the `RenderContext` and the `Surface` at a hit belong to the
 //! integrator, which writes them (`integrator::queues`, `integrator::context`); they are
 //! re-exported here. This module holds the stage loop, its tiles and its scratch space.
@@ -50,6 +54,8 @@ pub use crate::integrator::{
     PathState, RayQueue, RenderContext, ShadeOutputs, ShadowQueue, Surface,
 };
 pub use stages::emitter_window;
+
+use std::time::{Duration, Instant};
 
 use crate::accel::TraceStats;
 use crate::integrator::{is_glossy, weighs_area_lights};
@@ -126,6 +132,65 @@ impl RenderStats {
     }
 }
 
+/// Time spent in each stage of the loop, summed over tiles and threads (thread time, not wall
+/// time): where a render's time goes, and how fast its rays go through traversal inside it
+/// (`--stage-times`). Never part of the image or of `RenderStats`' counts.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct StageTimes {
+    /// Camera rays and the paths they start (`stages::generate_camera_rays`).
+    pub generate: Duration,
+    /// Closest hits of camera rays (depth 0).
+    pub camera_hits: Duration,
+    /// Closest hits of bounce rays (depth 1 on), and the emitters' walk of the last depth's
+    /// rays (`stages::extend_to_emitters`).
+    pub bounce_hits: Duration,
+    /// Shading: dropping misses, the draw pass, surfaces, BSDFs, light samples and queueing.
+    pub shade: Duration,
+    /// Occlusion of the shadow rays.
+    pub shadow_rays: Duration,
+    /// Emission probes: hemisphere sampling's rays, and the tile's emitter outlines (corner
+    /// rays and the extra camera rays of `--edge-samples`).
+    pub probes: Duration,
+    /// Adding each path's radiance to its pixel (`stages::accumulate`).
+    pub accumulate: Duration,
+}
+
+impl StageTimes {
+    /// Adds `o`'s times to these, stage by stage.
+    pub fn add(&mut self, o: &StageTimes) {
+        self.generate += o.generate;
+        self.camera_hits += o.camera_hits;
+        self.bounce_hits += o.bounce_hits;
+        self.shade += o.shade;
+        self.shadow_rays += o.shadow_rays;
+        self.probes += o.probes;
+        self.accumulate += o.accumulate;
+    }
+
+    /// Time in traversal: closest hits, shadow rays and probes.
+    pub fn traversal(&self) -> Duration {
+        self.camera_hits + self.bounce_hits + self.shadow_rays + self.probes
+    }
+
+    /// Time in all stages.
+    pub fn total(&self) -> Duration {
+        self.traversal() + self.generate + self.shade + self.accumulate
+    }
+}
+
+/// Runs `f` and, when `on` (`RenderContext::stage_times`), adds the time it took to `slot`.
+/// Two clock reads of about 25 ns per stage call (PERF.md, "Stage times").
+#[inline(always)]
+fn timed<R>(on: bool, slot: &mut Duration, f: impl FnOnce() -> R) -> R {
+    if !on {
+        return f();
+    }
+    let start = Instant::now();
+    let r = f();
+    *slot += start.elapsed();
+    r
+}
+
 /// A rectangle of pixels, row 0 at the top of the image.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Tile {
@@ -179,6 +244,15 @@ pub struct Workspace {
     edges: stages::EdgePixels,
     corner_emission: Vec<Vec3>,
     edge_rays: ShadowQueue,
+    /// The stages' times since the caller last took them (`take_times`).
+    times: StageTimes,
+}
+
+impl Workspace {
+    /// The stages' times of the tiles rendered since the last call; starts again from zero.
+    pub fn take_times(&mut self) -> StageTimes {
+        std::mem::take(&mut self.times)
+    }
 }
 
 /// Per-pixel running sums of one tile: radiance, and the illuminance moments that adaptive
@@ -235,15 +309,17 @@ pub fn render_tile(
     stats: &mut RenderStats,
 ) {
     ws.pixels.reset(tile.pixel_count());
-    stats.probe_rays += stages::mark_emitter_edges(
-        ctx,
-        tile,
-        &mut ws.rays,
-        &mut ws.hits,
-        &mut ws.corner_emission,
-        &mut ws.edges,
-        &mut stats.trace,
-    );
+    stats.probe_rays += timed(ctx.stage_times, &mut ws.times.probes, || {
+        stages::mark_emitter_edges(
+            ctx,
+            tile,
+            &mut ws.rays,
+            &mut ws.hits,
+            &mut ws.corner_emission,
+            &mut ws.edges,
+            &mut stats.trace,
+        )
+    });
     let max_batch = sample_batch(ctx);
     let mut first = ctx.samples.start;
     while first < ctx.samples.end {
@@ -286,29 +362,34 @@ fn trace_sample_batch(
     ws: &mut Workspace,
     stats: &mut RenderStats,
 ) {
-    stages::generate_camera_rays(
-        ctx,
-        tile,
-        first,
-        batch,
-        &ws.pixels.active,
-        &ws.edges,
-        &mut ws.paths,
-        &mut ws.rays,
-        &mut ws.edge_rays,
-    );
+    let times = &mut ws.times;
+    timed(ctx.stage_times, &mut times.generate, || {
+        stages::generate_camera_rays(
+            ctx,
+            tile,
+            first,
+            batch,
+            &ws.pixels.active,
+            &ws.edges,
+            &mut ws.paths,
+            &mut ws.rays,
+            &mut ws.edge_rays,
+        )
+    });
     let camera_len = ws.rays.len();
     stats.camera_rays += camera_len as u64;
     stats.probe_rays += ws.edge_rays.len() as u64;
-    stages::trace_emission_probes(
-        ctx,
-        &ws.edge_rays,
-        stages::Coherence::of_queue(0, 0, 0, ctx.packets, false),
-        &mut ws.hits,
-        &mut ws.emitter_rays,
-        &mut ws.paths,
-        &mut stats.trace,
-    );
+    timed(ctx.stage_times, &mut times.probes, || {
+        stages::trace_emission_probes(
+            ctx,
+            &ws.edge_rays,
+            stages::Coherence::of_queue(0, 0, 0, ctx.packets, false),
+            &mut ws.hits,
+            &mut ws.emitter_rays,
+            &mut ws.paths,
+            &mut stats.trace,
+        )
+    });
     let mut depth = 0;
     while !ws.rays.is_empty() {
         let coherence = stages::Coherence::of_queue(
@@ -318,51 +399,59 @@ fn trace_sample_batch(
             ctx.packets,
             ctx.accel.is_large(),
         );
+        let hits_time = if depth == 0 { &mut times.camera_hits } else { &mut times.bounce_hits };
         // Where no hit but an emitter's adds anything (a path's last segment), the emitters
         // are found first (`integrator::EmitterAccel`).
-        match ctx.emitters.filter(|_| ctx.integrator.ignores_surface_hit(depth, ctx.max_depth)) {
-            Some(emitters) => stages::extend_to_emitters(
-                ctx,
-                emitters,
-                &ws.rays.rays,
-                coherence,
-                &mut ws.hits,
-                &mut ws.emitter_rays,
-                &mut stats.trace,
-            ),
-            None => stages::extend(ctx, &ws.rays, coherence, &mut ws.hits, &mut stats.trace),
-        }
+        timed(ctx.stage_times, hits_time, || {
+            match ctx.emitters.filter(|_| ctx.integrator.ignores_surface_hit(depth, ctx.max_depth))
+            {
+                Some(emitters) => stages::extend_to_emitters(
+                    ctx,
+                    emitters,
+                    &ws.rays.rays,
+                    coherence,
+                    &mut ws.hits,
+                    &mut ws.emitter_rays,
+                    &mut stats.trace,
+                ),
+                None => stages::extend(ctx, &ws.rays, coherence, &mut ws.hits, &mut stats.trace),
+            }
+        });
         let queued = ws.rays.len();
-        stages::drop_misses(&mut ws.rays, &mut ws.hits);
-        ws.next_rays.clear();
-        ws.shadow.clear();
-        ws.probes.clear();
-        let queues = ShadeOutputs {
-            next: &mut ws.next_rays,
-            shadow: &mut ws.shadow,
-            probes: &mut ws.probes,
-        };
-        let (rays, hits) = (&ws.rays, &ws.hits);
-        stats.lane_vertices += stages::shade(
-            ctx,
-            depth,
-            rays,
-            hits,
-            &mut ws.paths,
-            &mut ws.draws,
-            &mut ws.shade,
-            queues,
-        );
+        timed(ctx.stage_times, &mut times.shade, || {
+            stages::drop_misses(&mut ws.rays, &mut ws.hits);
+            ws.next_rays.clear();
+            ws.shadow.clear();
+            ws.probes.clear();
+            let queues = ShadeOutputs {
+                next: &mut ws.next_rays,
+                shadow: &mut ws.shadow,
+                probes: &mut ws.probes,
+            };
+            let (rays, hits) = (&ws.rays, &ws.hits);
+            stats.lane_vertices += stages::shade(
+                ctx,
+                depth,
+                rays,
+                hits,
+                &mut ws.paths,
+                &mut ws.draws,
+                &mut ws.shade,
+                queues,
+            );
+        });
         stats.shadow_rays += ws.shadow.len() as u64;
         stats.probe_rays += ws.probes.len() as u64;
-        stages::trace_shadow_rays(
-            ctx,
-            &ws.shadow,
-            coherence,
-            &mut ws.blocked,
-            &mut ws.paths,
-            &mut stats.trace,
-        );
+        timed(ctx.stage_times, &mut times.shadow_rays, || {
+            stages::trace_shadow_rays(
+                ctx,
+                &ws.shadow,
+                coherence,
+                &mut ws.blocked,
+                &mut ws.paths,
+                &mut stats.trace,
+            )
+        });
         // Hemisphere probes leave the surfaces this queue hit, as the next depth's bounces do;
         // the queue's density counts the rays traced at this depth, misses included.
         let probe_coherence = stages::Coherence::of_queue(
@@ -372,18 +461,55 @@ fn trace_sample_batch(
             ctx.packets,
             ctx.accel.is_large(),
         );
-        stages::trace_emission_probes(
-            ctx,
-            &ws.probes,
-            probe_coherence,
-            &mut ws.hits,
-            &mut ws.emitter_rays,
-            &mut ws.paths,
-            &mut stats.trace,
-        );
+        timed(ctx.stage_times, &mut times.probes, || {
+            stages::trace_emission_probes(
+                ctx,
+                &ws.probes,
+                probe_coherence,
+                &mut ws.hits,
+                &mut ws.emitter_rays,
+                &mut ws.paths,
+                &mut stats.trace,
+            )
+        });
         std::mem::swap(&mut ws.rays, &mut ws.next_rays);
         stats.bounce_rays += ws.rays.len() as u64;
         depth += 1;
     }
-    stages::accumulate(&ws.paths, &mut ws.pixels, ctx.adaptive.is_some());
+    timed(ctx.stage_times, &mut times.accumulate, || {
+        stages::accumulate(&ws.paths, &mut ws.pixels, ctx.adaptive.is_some())
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every stage counts once in `total`, and the traversal stages (hits, shadow rays and
+    /// probes) in `traversal`; `add` adds stage by stage.
+    #[test]
+    fn stage_times_add_up_and_split_into_traversal_and_the_rest() {
+        let ms = Duration::from_millis;
+        let t = StageTimes {
+            generate: ms(1),
+            camera_hits: ms(2),
+            bounce_hits: ms(4),
+            shade: ms(8),
+            shadow_rays: ms(16),
+            probes: ms(32),
+            accumulate: ms(64),
+        };
+        assert_eq!(t.traversal(), ms(2 + 4 + 16 + 32));
+        assert_eq!(t.total(), ms(127));
+        let mut sum = t;
+        sum.add(&t);
+        assert_eq!(sum.total(), ms(254));
+        assert_eq!(sum.traversal(), ms(108));
+        assert_eq!((sum.generate, sum.shade, sum.accumulate), (ms(2), ms(16), ms(128)));
+        let mut slot = ms(5);
+        assert_eq!(timed(false, &mut slot, || 7), 7);
+        assert_eq!(slot, ms(5), "not asked: the clock is not read");
+        timed(true, &mut slot, || std::thread::sleep(ms(2)));
+        assert!(slot >= ms(7));
+    }
 }
