@@ -90,7 +90,7 @@ fn render_to_file(cli: &Cli) -> Result<()> {
         ));
     }
     print_render_stats(&mut report, &out.stats, out.time);
-    if cli.stage_times {
+    if config.stage_times {
         print_stage_times(&mut report, &out.stats, &out.stage_times);
     }
     if cli.is_part() {

@@ -126,8 +126,6 @@ pub(super) struct Cli {
     pub config: RenderConfig,
     /// `--bvh-node PATH`: the binary BVH node to preview.
     pub bvh_node: Option<String>,
-    /// `--stage-times`.
-    pub stage_times: bool,
 }
 
 impl RenderArgs {
@@ -188,7 +186,6 @@ impl RenderArgs {
             accel: if self.no_bvh { AccelKind::BruteForce } else { AccelKind::Bvh },
             config,
             bvh_node: self.bvh_node,
-            stage_times: self.stage_times,
         };
         if self.hemisphere {
             if cli.config.integrator != Integrator::Path(DirectLighting::LightSampling) {
