@@ -48,29 +48,27 @@ impl ExactRgb {
     /// all of them) take a branch-free path: their fixed-point values stay under 2^59, so up to
     /// 16 of them add up in an `i64` without overflow, and the pixel's `i128` sums are touched
     /// once per run (PERF.md, "Whole renders"). The run's channels are read as one flat array
-    /// in `GROUP`s of 8 samples (24 numbers, a whole number of RGB triples), added lane by lane
-    /// across the groups in a loop the compiler vectorises, and the lanes of each channel summed
-    /// at the end: integer sums, so the same sum in any order.
+    /// of 48 numbers and summed per channel by `channel_sums`: integer sums, so the same sum in
+    /// any order.
     pub fn add_all(&mut self, rgb: &[Vec3]) {
         for run in rgb.chunks(RUN) {
             let flat = flat_coordinates(run);
+            // A shorter run is padded with zeros, which add nothing: every run then takes the
+            // one fixed-size path below.
+            let mut padded = [0.0f32; 3 * RUN];
+            let flat: &[f32; 3 * RUN] = match flat.try_into() {
+                Ok(full) => full,
+                Err(_) => {
+                    padded[..flat.len()].copy_from_slice(flat);
+                    &padded
+                }
+            };
             let small = flat.iter().fold(true, |all, x| all & (x.abs() < SMALL));
             if !small {
                 run.iter().for_each(|v| self.add(v.to_array()));
                 continue;
             }
-            let mut lanes = [0i64; GROUP];
-            for group in flat.chunks(GROUP) {
-                for (lane, &x) in lanes.iter_mut().zip(group) {
-                    // SAFETY: |x| < SMALL = 8 (checked above for the whole run, which also
-                    // rules out NaN), so x 2^FRAC_BITS is finite and under 2^59 in magnitude,
-                    // within i64; the conversion truncates toward zero as `as` and `to_fixed`
-                    // do. Unlike `as`, it needs no saturation, so it vectorises (AVX-512DQ).
-                    *lane += unsafe { (x as f64 * SCALE).to_int_unchecked::<i64>() };
-                }
-            }
-            for c in 0..3 {
-                let sum: i64 = lanes.iter().skip(c).step_by(3).sum();
+            for (c, sum) in channel_sums(flat).into_iter().enumerate() {
                 self.fixed[c] = self.fixed[c].wrapping_add(sum as i128);
             }
         }
@@ -104,9 +102,27 @@ const SCALE: f64 = (1u64 << FRAC_BITS) as f64;
 const SMALL: f32 = 8.0;
 /// ... so that this many of them sum to under 2^63.
 const RUN: usize = 16;
-/// Numbers per lane group of `add_all`: 8 RGB samples.
-const GROUP: usize = 24;
-const _: () = assert!(FRAC_BITS + 3 + RUN.ilog2() < 64 && SMALL == 8.0);
+const _: () = assert!(FRAC_BITS + 3 + RUN.ilog2() < 64 && SMALL == 8.0 && RUN == 16);
+
+/// The fixed-point sums of the three channels of `RUN` RGB samples, all of magnitude under
+/// `SMALL` (so finite). The values are added in halves, 48 -> 24 -> 12 -> 6 -> 3 numbers: each
+/// half is a whole number of RGB triples long, so a number's channel stays its position mod 3,
+/// and every step is one vertical add of fixed-size arrays, which stay in registers. (Added
+/// lane by lane in groups of 24, then strided per channel, the compiler kept the group's lanes
+/// on the stack in some builds, and each add waited on the store before it.)
+#[inline(always)]
+fn channel_sums(flat: &[f32; 3 * RUN]) -> [i64; 3] {
+    // SAFETY: |x| < SMALL = 8 (the caller checked the whole run, which also rules out NaN), so
+    // x 2^FRAC_BITS is finite and under 2^59 in magnitude, within i64; the conversion truncates
+    // toward zero as `as` and `to_fixed` do. Unlike `as`, it needs no saturation, so it
+    // vectorises (AVX-512DQ). 16 such values add up to under 2^63.
+    let fixed: [i64; 3 * RUN] =
+        std::array::from_fn(|k| unsafe { (flat[k] as f64 * SCALE).to_int_unchecked::<i64>() });
+    let h24: [i64; 24] = std::array::from_fn(|k| fixed[k] + fixed[k + 24]);
+    let h12: [i64; 12] = std::array::from_fn(|k| h24[k] + h24[k + 12]);
+    let h6: [i64; 6] = std::array::from_fn(|k| h12[k] + h12[k + 6]);
+    [h6[0] + h6[3], h6[1] + h6[4], h6[2] + h6[5]]
+}
 
 #[inline]
 fn to_fixed(v: f32) -> i128 {
