@@ -37,8 +37,10 @@ pub struct EdgePixels {
 /// 0.4% more noise).
 const EDGE_BUDGET: f32 = 1.0;
 
-/// Paths whose camera rays are made together in SIMD lanes.
-const LANES: usize = 8;
+/// Paths whose camera rays are made together in SIMD lanes: 16, two chains of 8-lane
+/// arithmetic that overlap (`Camera::dirs_through_pixels`; 8 took 0.033 s of a `-m 1`
+/// render's camera rays where 16 take 0.028 s: PERF.md, "Whole renders").
+const LANES: usize = 16;
 
 /// Starts one path per (active pixel, sample) and queues its camera ray. With one sample per pixel the
 /// ray goes through the pixel centre (as the course does); otherwise it is jittered within the
@@ -46,7 +48,7 @@ const LANES: usize = 8;
 /// `--sampler sobol`, uniform with `independent`).
 ///
 /// Two passes: the paths first (a pixel's key hashed once for all its samples), then their
-/// rays 8 at a time, the Sobol jitter and the directions in lanes. Done one path at a time this
+/// rays 16 at a time, the Sobol jitter and the directions in lanes. Done one path at a time this
 /// stage was a sixth of a `-m 1` render (PERF.md, "Whole renders"); the rays are the same bits.
 ///
 /// Paths of pixels marked in `edges` (`mark_emitter_edges`) also queue their K = `edges.extra`
