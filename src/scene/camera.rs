@@ -101,7 +101,7 @@ impl Camera {
     /// each; `N` a multiple of 8), in SIMD lanes that repeat its operations in its order, so
     /// each equals the scalar ray's bit for bit. Each 8 lanes are one chain of two divisions,
     /// a square root and a third division; with 16 points the two chains overlap (camera-ray
-    /// generation 0.033 -> 0.028 s at `-m 1`: PERF.md, "Whole renders").
+    /// generation 0.032 -> 0.029 s at `-m 1`: PERF.md, "Whole renders").
     #[inline]
     pub fn dirs_through_pixels<const N: usize>(&self, px: [f32; N], py: [f32; N]) -> [[f32; N]; 3] {
         const { assert!(N.is_multiple_of(8)) };

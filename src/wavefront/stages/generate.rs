@@ -38,8 +38,8 @@ pub struct EdgePixels {
 const EDGE_BUDGET: f32 = 1.0;
 
 /// Paths whose camera rays are made together in SIMD lanes: 16, two chains of 8-lane
-/// arithmetic that overlap (`Camera::dirs_through_pixels`; 8 took 0.033 s of a `-m 1`
-/// render's camera rays where 16 take 0.028 s: PERF.md, "Whole renders").
+/// arithmetic that overlap (`Camera::dirs_through_pixels`; 8 took 0.032 s of a `-m 1`
+/// render's camera rays where 16 take 0.029 s: PERF.md, "Whole renders").
 const LANES: usize = 16;
 
 /// Starts one path per (active pixel, sample) and queues its camera ray. With one sample per pixel the
