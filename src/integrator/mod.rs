@@ -26,6 +26,7 @@ pub use context::{emission_seen, surface_material, RenderContext, ShadeOutputs, 
 pub use emitter_accel::EmitterAccel;
 pub use lights::LightSet;
 pub use path::{is_glossy, weighs_area_lights, DirectLighting, DrawLayout};
+pub(crate) use queues::FILL as PATH_FILL;
 pub use queues::{PathState, RayQueue, ShadowQueue};
 
 use crate::math::{Ray, Vec3};

@@ -7,9 +7,10 @@
 use crate::math::{Ray, Vec3};
 use crate::sampler::PathSampler;
 
-/// A pixel's samples in a full wavefront pass (`wavefront::SAMPLE_BATCH`): the number that
-/// `PathState::push_pixel_samples` starts with fixed-size copies.
-const FILL: usize = 16;
+/// A pixel's samples in a full wavefront pass (`wavefront::SAMPLE_BATCH`, which asserts that
+/// the two agree): the number that `PathState::push_pixel_samples` starts with fixed-size
+/// copies.
+pub(crate) const FILL: usize = 16;
 
 /// One entry per path (pixel sample) of the current batch.
 #[derive(Default)]

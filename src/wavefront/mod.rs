@@ -67,6 +67,9 @@ use crate::scene::Light;
 pub const TILE: u32 = 16;
 /// Samples per pixel traced together in one wavefront pass.
 pub const SAMPLE_BATCH: u32 = 16;
+// A full pass starts each pixel's paths with fixed-size copies of this many
+// (`PathState::push_pixel_samples`).
+const _: () = assert!(SAMPLE_BATCH as usize == crate::integrator::PATH_FILL);
 /// Most shadow rays one wavefront pass may queue per depth.
 pub const SHADOW_QUEUE_CAP: u32 = 8192;
 
