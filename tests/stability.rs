@@ -137,3 +137,35 @@ fn hemisphere_sampling_with_only_delta_lights_renders_black_without_crashing() {
     let lit = render_pixels(&scene, LIGHT, |c| (c.width, c.height) = (16, 16));
     assert!(lit.iter().all(|v| v.x > 0.0));
 }
+
+#[test]
+fn coordinates_that_overflow_box_areas_still_build_a_tree() {
+    // Boxes 1e22 across have areas past f32::MAX (and inf x 0 = NaN for flat ones), where
+    // the wide tree's least-cost plan once chose no split and indexed out of bounds.
+    let mut b = SceneBuilder::new();
+    let white = b.material(Material::Diffuse { albedo: Vec3::splat(0.7) });
+    b.horizontal_quad(0.0, (-1.0, 1.0), (-1.0, 1.0), true, white);
+    for k in 0..12 {
+        let (far, y) = (1e22 * (k as f32 + 1.0), -1.0 - k as f32);
+        b.horizontal_quad(y, (-far, far), (-far, 0.0), true, white);
+        b.quad(
+            [
+                Vec3::new(far, y, -1.0),
+                Vec3::new(far, y, 1.0),
+                Vec3::new(far, 1e20, 1.0),
+                Vec3::new(far, 1e20, -1.0),
+            ],
+            white,
+        );
+    }
+    b.light(Light::Point { position: Vec3::Y, radiance: Vec3::ONE });
+    let scene = b.build();
+    let accel = pathtracer::accel::Accel::new(&scene);
+    let ray = pathtracer::math::Ray::new(Vec3::new(0.1, 1.0, 0.2), Vec3::NEG_Y);
+    let hit = accel.intersect(&ray, &mut Default::default()).expect("the unit floor is hit");
+    assert_eq!((hit.t, hit.prim), (1.0, 0));
+    // The camera frames the whole scene, so the unit floor is far below a pixel: the render
+    // must only run and stay finite.
+    let px = render_pixels(&scene, LIGHT, |c| (c.width, c.height, c.spp) = (16, 12, 2));
+    assert!(px.iter().all(|v| v.is_finite()));
+}

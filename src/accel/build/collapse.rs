@@ -95,13 +95,24 @@ struct Collapser<'a> {
 /// The cheapest ways to hand a binary subtree to a wide parent.
 #[derive(Clone, Copy)]
 struct Plan {
-    /// `cost[k - 1]`: the least cost of the subtree as exactly k slots (infinite if it cannot
-    /// be: a leaf is one slot, an interior node at most as many as its leaves).
+    /// `cost[k - 1]`: the least cost of the subtree as exactly k slots, for k up to `slots`.
     cost: [f32; ARITY],
-    /// `split[k - 1]`, for k >= 2: how many of the k slots go to the first child's subtree.
+    /// `split[k - 1]`, for 2 <= k <= `slots`: how many of the k slots go to the first child's
+    /// subtree.
     split: [u8; ARITY],
+    /// The most slots the subtree can fill (at most `ARITY`): a leaf is one slot, an interior
+    /// node at most as many as its leaves.
+    slots: u8,
     /// The node as one wide node: its slot count and how many go to its first child.
     node: (u8, u8),
+}
+
+/// Whether cost `c` beats `best`. Costs are areas, and a scene whose coordinates reach
+/// 1e19 or so overflows them to infinity or NaN (inf x 0), where `<` never holds; the
+/// feasibility of a plan is `Plan::slots`, never a finite cost, so such a scene still gets a
+/// well-formed tree (a plan of NaN costs left `node` at zero slots: an index out of bounds).
+fn cheaper(c: f32, best: f32) -> bool {
+    c < best || (best.is_nan() && !c.is_nan())
 }
 
 impl<'a> Collapser<'a> {
@@ -131,7 +142,8 @@ impl<'a> Collapser<'a> {
     /// Every binary node's `Plan`, children before parents (one backward pass).
     fn plans(&self) -> Vec<Plan> {
         let nodes = self.nodes;
-        let unused = Plan { cost: [f32::INFINITY; ARITY], split: [0; ARITY], node: (0, 0) };
+        let unused =
+            Plan { cost: [f32::INFINITY; ARITY], split: [0; ARITY], slots: 1, node: (0, 0) };
         let mut plans = vec![unused; nodes.len()];
         for x in (0..nodes.len()).rev() {
             let mut plan = unused;
@@ -140,18 +152,22 @@ impl<'a> Collapser<'a> {
                 plan.cost[0] = 0.0;
             } else {
                 let (first, second) = (&plans[x + 1], &plans[nodes[x].index as usize]);
-                for k in 2..=ARITY {
-                    for j in 1..k {
+                let (a, b) = (first.slots as usize, second.slots as usize);
+                plan.slots = (a + b).min(ARITY) as u8;
+                for k in 2..=plan.slots as usize {
+                    // j slots to the first child, k - j to the second, each within its reach.
+                    let js = k.saturating_sub(b).max(1)..=a.min(k - 1);
+                    for (n, j) in js.enumerate() {
                         let c = first.cost[j - 1] + second.cost[k - j - 1];
-                        if c < plan.cost[k - 1] {
+                        if n == 0 || cheaper(c, plan.cost[k - 1]) {
                             (plan.cost[k - 1], plan.split[k - 1]) = (c, j as u8);
                         }
                     }
                 }
                 let area = half_area(&nodes[x]);
-                for k in 2..=ARITY {
+                for k in 2..=plan.slots as usize {
                     let c = area * (NODE_COST + SLOT_COST * k as f32) + plan.cost[k - 1];
-                    if c < plan.cost[0] {
+                    if k == 2 || cheaper(c, plan.cost[0]) {
                         (plan.cost[0], plan.node) = (c, (k as u8, plan.split[k - 1]));
                     }
                 }
