@@ -1,7 +1,9 @@
 //! Mutation fuzzing of the COLLADA loader over the course files: byte flips, truncation,
 //! deleted and duplicated elements, numbers replaced by NaN/inf/huge/negative values or words,
 //! broken and cyclic `url`/`source`/`target` references. Every input must give a scene or a
-//! one-line, non-empty `Error`; a panic is a bug.
+//! one-line, non-empty `Error`; a panic is a bug. Every scene it gives is then rendered, tiny
+//! (`render_tiny`): building its tree and rendering must not panic either (a scene whose
+//! coordinates overflowed the tree's box areas once did).
 //!
 //! The quick campaign runs in CI. The long one is ignored; run it with a count:
 //! `PT_FUZZ_COUNT=1000000 cargo test --release --test fuzz_loader -- --ignored --nocapture`.
@@ -14,8 +16,10 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::Instant;
 
+use pathtracer::accel::{Accel, AccelKind};
 use pathtracer::sampler::Pcg32;
-use pathtracer::scene::collada;
+use pathtracer::scene::{collada, Scene};
+use pathtracer::{render, RenderConfig};
 
 /// The course files the campaign mutates: the small ones, so each input parses in microseconds
 /// (the big meshes add nothing a mutation of a small mesh does not reach).
@@ -207,6 +211,9 @@ struct Tally {
     errors: AtomicUsize,
     panics: AtomicUsize,
     bad_messages: AtomicUsize,
+    /// Scenes whose tiny render has a NaN or infinite pixel: reported, not a failure (finite
+    /// but absurd values, such as an albedo of 3.4e38, overflow f32 on the way).
+    non_finite: AtomicUsize,
     /// The first few failing inputs, to report and to turn into regression tests.
     failures: Mutex<Vec<(String, String)>>,
 }
@@ -279,6 +286,25 @@ fn check(text: &str, tally: &Tally) {
             } else if !scene.lights.iter().all(collada::light_is_finite) {
                 tally.bad_messages.fetch_add(1, Ordering::Relaxed);
                 fail("loader returned a light that is not finite".into());
+            } else {
+                IN_LOADER.with(|f| f.set(true));
+                let rendered = catch_unwind(AssertUnwindSafe(|| render_tiny(&scene)));
+                IN_LOADER.with(|f| f.set(false));
+                match rendered {
+                    Ok(Ok(finite)) => {
+                        if !finite {
+                            tally.non_finite.fetch_add(1, Ordering::Relaxed);
+                        }
+                    }
+                    Ok(Err(m)) => {
+                        tally.bad_messages.fetch_add(1, Ordering::Relaxed);
+                        fail(format!("bad render error message: {m:?}"));
+                    }
+                    Err(payload) => {
+                        tally.panics.fetch_add(1, Ordering::Relaxed);
+                        fail(format!("render panic: {}", panic_message(payload.as_ref())));
+                    }
+                }
             }
         }
         Ok(Err(e)) => {
@@ -291,13 +317,54 @@ fn check(text: &str, tally: &Tally) {
         }
         Err(payload) => {
             tally.panics.fetch_add(1, Ordering::Relaxed);
-            let msg = payload
-                .downcast_ref::<&str>()
-                .map(|s| s.to_string())
-                .or_else(|| payload.downcast_ref::<String>().cloned())
-                .unwrap_or_default();
-            fail(format!("panic: {msg}"));
+            fail(format!("panic: {}", panic_message(payload.as_ref())));
         }
+    }
+}
+
+fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_default()
+}
+
+/// Builds `scene`'s tree and renders it at 8 x 6 pixels, 2 samples, depths 1 and 4, with each
+/// estimator. Ok(whether every pixel is finite), or the first error that is not one
+/// non-empty line. An error is a fine answer (a render refusing the scene); a panic is not.
+fn render_tiny(scene: &Scene) -> Result<bool, String> {
+    let accel = match Accel::try_build(scene, AccelKind::Bvh) {
+        Ok(accel) => accel,
+        Err(e) => return one_line(e.to_string()).map(|_| true),
+    };
+    let mut finite = true;
+    for integrator in [common::LIGHT, common::MIS, common::HEMISPHERE] {
+        for max_depth in [1, 4] {
+            let config = RenderConfig {
+                integrator,
+                width: 8,
+                height: 6,
+                spp: 2,
+                max_depth,
+                threads: 1,
+                seed: 3,
+                ..RenderConfig::default()
+            };
+            match render(scene, &accel, &config) {
+                Ok(out) => finite &= out.pixels.iter().all(|p| p.is_finite()),
+                Err(e) => one_line(e.to_string())?,
+            }
+        }
+    }
+    Ok(finite)
+}
+
+fn one_line(m: String) -> Result<(), String> {
+    if m.trim().is_empty() || m.contains('\n') || m.contains('\r') {
+        Err(m)
+    } else {
+        Ok(())
     }
 }
 
@@ -311,9 +378,11 @@ fn run_and_assert(count: usize, threads: usize, seed: u64) {
         t.errors.load(Ordering::Relaxed),
     );
     let (panics, bad) = (t.panics.load(Ordering::Relaxed), t.bad_messages.load(Ordering::Relaxed));
+    let non_finite = t.non_finite.load(Ordering::Relaxed);
     eprintln!(
-        "fuzz: {n} inputs in {secs:.1} s on {threads} threads ({:.0}/s): {ok} scenes, {err} errors, \
-         {panics} panics, {bad} bad messages",
+        "fuzz: {n} inputs in {secs:.1} s on {threads} threads ({:.0}/s): {ok} scenes (rendered; \
+         {non_finite} with a NaN or infinite pixel), {err} errors, {panics} panics, {bad} bad \
+         messages",
         n as f64 / secs
     );
     let failures = t.failures.lock().unwrap();

@@ -55,11 +55,16 @@ pub(super) fn single_number(node: Node, what: &str) -> Result<f32> {
     }
 }
 
-/// The first three numbers of a colour (a fourth, alpha, is ignored).
+/// The first three numbers of a colour (a fourth, alpha, is ignored). Every colour the
+/// dialect has (reflectances, transmittances, radiances, a conductor's eta and k) is
+/// non-negative: a negative component is an error, not light taken away.
 pub(super) fn rgb(node: Node, what: &str) -> Result<Vec3> {
     let v = numbers(node, what)?;
     if v.len() < 3 {
         bail!("{what}: expected 3 numbers, found {}", v.len());
+    }
+    if let Some(c) = v[..3].iter().find(|c| **c < 0.0) {
+        bail!("{what}: {c} is negative");
     }
     Ok(Vec3::new(v[0], v[1], v[2]))
 }
@@ -81,6 +86,19 @@ pub(super) fn integers(node: Node, what: &str) -> Result<Vec<u32>> {
 mod tests {
     use super::*;
     use roxmltree::Document;
+
+    #[test]
+    fn colours_reject_negative_components() {
+        let doc = Document::parse("<a>0.5 -0.25 1 1</a>").unwrap();
+        let e = rgb(doc.root_element(), "diffuse color").unwrap_err().to_string();
+        assert!(e.contains("diffuse color: -0.25 is negative"), "{e}");
+        let doc = Document::parse("<a>0.5 0 1 -1</a>").unwrap();
+        assert_eq!(
+            rgb(doc.root_element(), "c").unwrap(),
+            Vec3::new(0.5, 0.0, 1.0),
+            "alpha is ignored"
+        );
+    }
 
     #[test]
     fn numbers_reject_nan_and_words() {
