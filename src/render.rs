@@ -192,6 +192,14 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         ),
         None => Camera::new(&scene.camera, bounds, config.width, config.height),
     };
+    if !camera.is_finite() {
+        crate::bail!(
+            "cannot place the camera: the scene's bounding box ({} to {}) is too large for \
+             32-bit floats",
+            bounds.min,
+            bounds.max
+        );
+    }
     let (samples, window) = check_range_and_crop(config)?;
     let lights = config.integrator.light_set(scene);
     let triangle_normals = scene.triangle_normals()?;

@@ -169,3 +169,18 @@ fn coordinates_that_overflow_box_areas_still_build_a_tree() {
     let px = render_pixels(&scene, LIGHT, |c| (c.width, c.height, c.spp) = (16, 12, 2));
     assert!(px.iter().all(|v| v.is_finite()));
 }
+
+#[test]
+fn a_scene_too_large_to_frame_is_an_error_not_a_black_image() {
+    // Corners at +-3e38: the bounding box's diagonal overflows f32, and the course camera sits
+    // 1.5 diagonals from the centre.
+    let mut b = SceneBuilder::new();
+    let white = b.material(Material::Diffuse { albedo: Vec3::splat(0.7) });
+    b.horizontal_quad(0.0, (-3e38, 3e38), (-3e38, 3e38), true, white);
+    b.light(Light::Point { position: Vec3::Y, radiance: Vec3::ONE });
+    let scene = b.build();
+    let accel = pathtracer::accel::Accel::new(&scene);
+    let config = pathtracer::RenderConfig { width: 8, height: 6, ..Default::default() };
+    let e = pathtracer::render(&scene, &accel, &config).err().expect("an error").to_string();
+    assert!(e.starts_with("cannot place the camera") && !e.contains('\n'), "{e}");
+}

@@ -26,6 +26,17 @@ impl Default for CameraDesc {
     }
 }
 
+/// `bounds.diagonal()`, or the same length through f64 where the f32 squares overflow (a box
+/// over about 1.8e19 across), so that such a scene is still framed.
+fn diagonal(bounds: Aabb) -> f32 {
+    let d = bounds.diagonal();
+    if d.is_finite() {
+        return d;
+    }
+    let e = bounds.extent().as_dvec3();
+    e.length() as f32
+}
+
 /// The course renderer's default screen, to which the field of view is first fitted.
 const FIT_W: f32 = 800.0;
 const FIT_H: f32 = 600.0;
@@ -63,7 +74,7 @@ impl Camera {
         let (target, diag) = if bounds.is_empty() {
             (Vec3::ZERO, 1.0)
         } else {
-            (bounds.center(), bounds.diagonal().max(f32::MIN_POSITIVE))
+            (bounds.center(), diagonal(bounds).max(f32::MIN_POSITIVE))
         };
         let r = (1.5 * diag).clamp(0.075 * diag, 15.0 * diag);
 
@@ -80,6 +91,15 @@ impl Camera {
         let x = up.cross(w).normalize();
         let y = w.cross(x).normalize();
         Camera { eye, target, x, y, z: w, tan_half_h, tan_half_v, width, height }
+    }
+
+    /// Whether the eye and the basis are finite numbers. A scene whose bounding box's diagonal
+    /// overflows f32 puts the eye at infinity (1.5 diagonals from the centre), and every
+    /// camera ray is then NaN: a black image that says nothing of why.
+    pub fn is_finite(&self) -> bool {
+        [self.eye, self.x, self.y, self.z].iter().all(|v| v.is_finite())
+            && self.tan_half_h.is_finite()
+            && self.tan_half_v.is_finite()
     }
 
     /// The ray through normalised image coordinates (sx, sy) in [0, 1]^2, sy = 0 at the bottom.
