@@ -188,13 +188,19 @@ fn smith_g1(alpha: f32, w: Vec3) -> f32 {
     (3.535 * a + 2.181 * a * a) / (1.0 + 2.276 * a + 2.577 * a * a)
 }
 
-/// Fresnel reflectance of a conductor with complex index eta + i k, per channel. `eta^2 +
-/// k^2` is held at `f32::MAX`: a scene's finite index of 2^64 squared to infinity, and the
-/// ratios below to inf / inf = NaN pixels, where the limit is a perfect mirror (1).
+/// The largest conductor index `conductor_fresnel` uses: the reflectance is 1 in f32 well
+/// before it, and its square stays finite. A scene's finite index of 2^64 or 3.4e38 squared
+/// to infinity, and the ratios below to inf / inf = NaN pixels.
+pub(super) const MAX_CONDUCTOR_INDEX: f32 = 1e18;
+
+/// Fresnel reflectance of a conductor with complex index eta + i k, per channel (each part
+/// held at `MAX_CONDUCTOR_INDEX`).
 fn conductor_fresnel(cos_i: f32, eta: Vec3, k: Vec3) -> Vec3 {
     let c = cos_i.clamp(0.0, 1.0);
     let c2 = Vec3::splat(c * c);
-    let e2k2 = (eta * eta + k * k).min(Vec3::splat(f32::MAX));
+    let (eta, k) =
+        (eta.min(Vec3::splat(MAX_CONDUCTOR_INDEX)), k.min(Vec3::splat(MAX_CONDUCTOR_INDEX)));
+    let e2k2 = eta * eta + k * k;
     let two_eta_c = 2.0 * c * eta;
     let rs = (e2k2 - two_eta_c + c2) / (e2k2 + two_eta_c + c2);
     let rp = (e2k2 * c2 - two_eta_c + Vec3::ONE) / (e2k2 * c2 + two_eta_c + Vec3::ONE);
@@ -263,11 +269,13 @@ mod tests {
 
     #[test]
     fn conductor_fresnel_of_an_index_whose_square_overflows_is_a_mirror() {
-        // 2^64 is a finite f32 whose square is not (a fuzzed scene's eta made NaN pixels).
-        let huge = Vec3::splat(2f32.powi(64));
-        for c in [0.0, 0.3, 1.0] {
-            assert_eq!(conductor_fresnel(c, huge, Vec3::ONE), Vec3::ONE, "cos {c}");
-            assert_eq!(conductor_fresnel(c, Vec3::ONE, huge), Vec3::ONE, "cos {c}");
+        // 2^64 and 3.4e38 are finite f32s whose squares are not (fuzzed scenes' eta made NaN
+        // pixels).
+        for huge in [2f32.powi(64), 3.4e38].map(Vec3::splat) {
+            for c in [0.0, 0.3, 0.6, 1.0] {
+                assert_eq!(conductor_fresnel(c, huge, Vec3::ONE), Vec3::ONE, "cos {c}");
+                assert_eq!(conductor_fresnel(c, Vec3::ONE, huge), Vec3::ONE, "cos {c}");
+            }
         }
     }
 

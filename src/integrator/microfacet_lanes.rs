@@ -7,6 +7,7 @@
 
 use std::f32::consts::{PI, TAU};
 
+use super::bsdf::MAX_CONDUCTOR_INDEX;
 use super::lane_math::{gt, max, min, per_lane, Lanes, V, V3};
 use crate::math::Vec3;
 use crate::simd::SimdF32;
@@ -93,8 +94,10 @@ fn conductor_fresnel(cos_i: V, eta: V3, k: V3) -> V3 {
     let c = V::select(gt(c, one), one, c);
     let c2 = c * c;
     let two_c = V::splat(2.0) * c;
+    let max_index = V::splat(MAX_CONDUCTOR_INDEX);
     let channel = |eta: V, k: V| {
-        let e2k2 = min(eta * eta + k * k, V::splat(f32::MAX));
+        let (eta, k) = (min(eta, max_index), min(k, max_index));
+        let e2k2 = eta * eta + k * k;
         let two_eta_c = two_c * eta;
         let rs = (e2k2 - two_eta_c + c2) / (e2k2 + two_eta_c + c2);
         let rp = (e2k2 * c2 - two_eta_c + one) / (e2k2 * c2 + two_eta_c + one);
