@@ -193,11 +193,12 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         None => Camera::new(&scene.camera, bounds, config.width, config.height),
     };
     if !camera.is_finite() {
+        let corner = |v: Vec3| format!("[{:.3e}, {:.3e}, {:.3e}]", v.x, v.y, v.z);
         crate::bail!(
             "cannot place the camera: the scene's bounding box ({} to {}) is too large for \
              32-bit floats",
-            bounds.min,
-            bounds.max
+            corner(bounds.min),
+            corner(bounds.max)
         );
     }
     let (samples, window) = check_range_and_crop(config)?;
