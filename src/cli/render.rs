@@ -78,6 +78,16 @@ fn render_to_file(cli: &Cli) -> Result<()> {
     }
 
     let mut out = render(&scene, &accel, config)?;
+    // Finite but absurd scene numbers (a colour of 3.4e38) overflow f32 on the way: said, not
+    // hidden (PERF.md, "Loader fuzzing").
+    let non_finite = out.pixels.iter().filter(|p| !p.is_finite()).count();
+    if non_finite > 0 {
+        errln!(
+            "warning: {}: {non_finite} pixels are NaN or infinite: the scene's numbers overflow \
+             32-bit floats (e.g. a colour or radiance near 3.4e38)",
+            cli.scene.display()
+        );
+    }
     if let Some(n) = &node {
         let camera = bvh_preview::camera_for(&scene, config);
         bvh_preview::mark_node(&mut out.pixels, &camera, &accel, n);
