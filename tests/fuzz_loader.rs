@@ -230,12 +230,12 @@ fn campaign(count: usize, threads: usize, seed: u64) -> Option<Tally> {
         })
         .collect();
     let tally = Tally::default();
-    // Panics in the loader are counted, not printed: a million backtraces would drown the
-    // report. Any other panic (in the harness itself) still prints.
+    // Panics in the loader or a tiny render are counted, not printed: a million backtraces
+    // would drown the report. Any other panic (in the harness itself) still prints.
     let hook = std::sync::Arc::new(std::panic::take_hook());
     let print = hook.clone();
     std::panic::set_hook(Box::new(move |info| {
-        if !IN_LOADER.with(|f| f.get()) {
+        if !IN_CHECKED_CODE.with(|f| f.get()) {
             print(info)
         }
     }));
@@ -263,7 +263,7 @@ fn campaign(count: usize, threads: usize, seed: u64) -> Option<Tally> {
 }
 
 thread_local! {
-    static IN_LOADER: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+    static IN_CHECKED_CODE: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
 }
 
 fn check(text: &str, tally: &Tally) {
@@ -274,9 +274,9 @@ fn check(text: &str, tally: &Tally) {
             f.push((why, text.to_string()));
         }
     };
-    IN_LOADER.with(|f| f.set(true));
+    IN_CHECKED_CODE.with(|f| f.set(true));
     let result = catch_unwind(AssertUnwindSafe(|| collada::parse(text)));
-    IN_LOADER.with(|f| f.set(false));
+    IN_CHECKED_CODE.with(|f| f.set(false));
     match result {
         Ok(Ok(scene)) => {
             tally.scenes.fetch_add(1, Ordering::Relaxed);
@@ -287,9 +287,9 @@ fn check(text: &str, tally: &Tally) {
                 tally.bad_messages.fetch_add(1, Ordering::Relaxed);
                 fail("loader returned a light that is not finite".into());
             } else {
-                IN_LOADER.with(|f| f.set(true));
+                IN_CHECKED_CODE.with(|f| f.set(true));
                 let rendered = catch_unwind(AssertUnwindSafe(|| render_tiny(&scene)));
-                IN_LOADER.with(|f| f.set(false));
+                IN_CHECKED_CODE.with(|f| f.set(false));
                 match rendered {
                     Ok(Ok(finite)) => {
                         if !finite {
