@@ -81,7 +81,13 @@ impl Aabb {
     /// The length of the diagonal, 0 for the empty box.
     #[inline]
     pub fn diagonal(&self) -> f32 {
-        self.extent().length()
+        let d = self.extent().length();
+        if d.is_finite() {
+            return d;
+        }
+        // The f32 squares overflow for a box over about 1.8e19 across (the camera's distance
+        // and the ray epsilons scale with this length): the same length through f64.
+        self.extent().as_dvec3().length() as f32
     }
 
     /// Half the surface area (the SAH only needs ratios, so the factor 2 is dropped).
@@ -144,6 +150,16 @@ fn cos_poly(z: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn diagonal_of_a_box_whose_squares_overflow_f32_is_finite() {
+        let b = Aabb { min: Vec3::splat(-1e20), max: Vec3::splat(1e20) };
+        let d = b.diagonal();
+        assert!((d / (2e20 * 3f32.sqrt()) - 1.0).abs() < 1e-6, "{d}");
+        let unit = Aabb { min: Vec3::ZERO, max: Vec3::ONE };
+        assert_eq!(unit.diagonal(), Vec3::ONE.length());
+        assert_eq!(Aabb::EMPTY.diagonal(), 0.0);
+    }
 
     #[test]
     fn sincos_turns_matches_f64_within_1_2e_7() {

@@ -26,17 +26,6 @@ impl Default for CameraDesc {
     }
 }
 
-/// `bounds.diagonal()`, or the same length through f64 where the f32 squares overflow (a box
-/// over about 1.8e19 across), so that such a scene is still framed.
-fn diagonal(bounds: Aabb) -> f32 {
-    let d = bounds.diagonal();
-    if d.is_finite() {
-        return d;
-    }
-    let e = bounds.extent().as_dvec3();
-    e.length() as f32
-}
-
 /// The course renderer's default screen, to which the field of view is first fitted.
 const FIT_W: f32 = 800.0;
 const FIT_H: f32 = 600.0;
@@ -74,7 +63,7 @@ impl Camera {
         let (target, diag) = if bounds.is_empty() {
             (Vec3::ZERO, 1.0)
         } else {
-            (bounds.center(), diagonal(bounds).max(f32::MIN_POSITIVE))
+            (bounds.center(), bounds.diagonal().max(f32::MIN_POSITIVE))
         };
         let r = (1.5 * diag).clamp(0.075 * diag, 15.0 * diag);
 
