@@ -35,7 +35,7 @@ use super::lane_math::{
     uniform_hemisphere, Frame, Lanes, V, V3,
 };
 use super::light_lanes::{sample_scene_light, sample_triangle_emitter, LightLanes};
-use super::microfacet_lanes::{self, MicrofacetLanes, MicrofacetParams};
+use super::microfacet_lanes::{self, MicrofacetLanes, MicrofacetParams, MicrofacetSample};
 
 /// Vertices shaded together. Sixteen, not eight: a vertex's arithmetic is one long chain of
 /// dependent divisions and square roots, so its time goes by latency, and 16 lanes (one
@@ -438,21 +438,26 @@ fn shade_lanes<const MICRO: bool, const DELTA: bool>(
             out.shadows.push(shadow_ray(ctx, &v, micro, &ls, w / V::splat(n as f32)));
         }
     }
-    if let Some(m) = weigh {
-        let (u1, u2, lights) = (number(layout.bsdf, 0), number(layout.bsdf, 1), &ctx.lights);
-        let vertex = (v.p, &v.frame, v.wo);
-        for (ls, w) in area_light_hits(&lights.scene_lights, ctx.light_samples, m, vertex, u1, u2) {
+    // As in `path::shade_hit`, MIS continues from the last vertex too (the BSDF half).
+    // Specular vertices continue at the last depth too (`path::shade_hit`).
+    let smooth_continues = depth + 1 < ctx.max_depth || direct == DirectLighting::Mis;
+    let continues = smooth_continues || DELTA;
+    // The microfacet lanes' BSDF sample, drawn once for the weighing and the continuation,
+    // which read the same numbers (each used to draw its own: the same bits twice).
+    let bsdf = micro
+        .filter(|_| weigh.is_some() || continues)
+        .map(|m| microfacet_lanes::sample(m, v.wo, number(layout.bsdf, 0), number(layout.bsdf, 1)));
+    if let (Some(m), Some(s)) = (weigh, &bsdf) {
+        let lights = &ctx.lights.scene_lights;
+        for (ls, w) in area_light_hits(lights, ctx.light_samples, m, (v.p, &v.frame), s) {
             out.shadows.push(shadow_ray(ctx, &v, micro, &ls, w));
         }
     }
     out.bounce.valid = 0;
-    // As in `path::shade_hit`, MIS continues from the last vertex too (the BSDF half).
-    // Specular vertices continue at the last depth too (`path::shade_hit`).
-    let smooth_continues = depth + 1 < ctx.max_depth || direct == DirectLighting::Mis;
-    if smooth_continues || DELTA {
+    if continues {
         let delta = if DELTA { Some(&lanes.delta) } else { None };
         let kinds = (micro, delta, smooth_continues);
-        continue_diffuse(ctx, depth, layout, &v, kinds, &number, &mut out.bounce);
+        continue_diffuse(ctx, depth, layout, &v, kinds, bsdf.as_ref(), &number, &mut out.bounce);
     }
 }
 
@@ -584,8 +589,8 @@ fn hemisphere_probe(
 }
 
 /// `path::continue_path` for a diffuse vertex (a cosine-weighted bounce), a microfacet one (a
-/// Beckmann-sampled bounce, `kinds.0`) or a specular one (`kinds.1`), with roulette; the
-/// smooth lanes continue only if `kinds.2`.
+/// Beckmann-sampled bounce, `kinds.0`, whose sample is `bsdf`) or a specular one (`kinds.1`),
+/// with roulette; the smooth lanes continue only if `kinds.2`.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn continue_diffuse(
@@ -594,6 +599,7 @@ fn continue_diffuse(
     layout: &DrawLayout,
     v: &Vertex,
     kinds: (Option<&MicrofacetLanes>, Option<&DeltaParams>, bool),
+    bsdf: Option<&MicrofacetSample>,
     number: &impl Fn(usize, usize) -> V,
     out: &mut BounceLanes,
 ) {
@@ -605,8 +611,7 @@ fn continue_diffuse(
     let mut pdf = wi.z * V::splat(FRAC_1_PI);
     let mut valid = used & gt(wo.z, zero) & gt(wi.z, zero);
     let mut weight = v.albedo;
-    if let Some(m) = micro {
-        let s = microfacet_lanes::sample(m, wo, u1, u2);
+    if let (Some(m), Some(s)) = (micro, bsdf) {
         wi = V3::select(m.mask, s.wi, wi);
         pdf = V::select(m.mask, s.pdf, pdf);
         valid = used & V::select(m.mask, s.valid, valid);

@@ -4,7 +4,7 @@
 
 use super::lane_math::{gt, neg, Frame, V, V3};
 use super::light_lanes::{corner_weights, pdf_at, LightLanes};
-use super::microfacet_lanes::{self, MicrofacetLanes};
+use super::microfacet_lanes::{self, MicrofacetLanes, MicrofacetSample};
 use super::rectangle::Rectangle;
 use crate::math::Vec3;
 use crate::scene::Light;
@@ -40,30 +40,29 @@ pub(super) fn light_sample_scale(
     V::select(m.mask, w, V::splat(1.0 / n as f32))
 }
 
-/// `path::queue_area_lights_hit` for the microfacet lanes `m`: the BSDF sample (numbers `u1`,
-/// `u2`) and, per area light, the light sample its direction finds with its weight.
+/// `path::queue_area_lights_hit` for the microfacet lanes `m`, given their BSDF sample `s`
+/// (`microfacet_lanes::sample`, the one the path continues with): per area light, the light
+/// sample its direction finds with its weight.
 #[inline(always)]
 pub(super) fn area_light_hits<'a>(
     lights: &'a [Light],
     light_samples: u32,
     m: &MicrofacetLanes,
-    (p, frame, wo): (V3, &Frame, V3),
-    u1: V,
-    u2: V,
+    (p, frame): (V3, &Frame),
+    s: &MicrofacetSample,
 ) -> impl Iterator<Item = (LightLanes, V)> + 'a {
-    let s = microfacet_lanes::sample(m, wo, u1, u2);
     let usable = m.mask & s.valid & s.pdf.simd_lt(V::splat(f32::INFINITY));
     let world = frame.t.scale(s.wi.x).add(frame.b.scale(s.wi.y)).add(frame.n.scale(s.wi.z));
     let dir = world.scale(V::splat(1.0) / world.dot(world).sqrt());
-    let frame_n = frame.n;
+    let (frame_n, pdf) = (frame.n, s.pdf);
     lights.iter().filter_map(move |light| match *light {
         Light::Area { position, direction, dim_x, dim_y, radiance } => {
             let r = Rectangle::new(position, direction, dim_x, dim_y);
             let hit = hit_by(&r, radiance, p, frame_n, dir);
             let ns = V::splat(light_samples as f32);
-            let w = power_heuristic(V::splat(1.0), s.pdf, ns, hit.pdf);
+            let w = power_heuristic(V::splat(1.0), pdf, ns, hit.pdf);
             let sampled = hit.sampled & usable;
-            Some((LightLanes { pdf: s.pdf, sampled, ..hit }, w))
+            Some((LightLanes { pdf, sampled, ..hit }, w))
         }
         _ => None,
     })
