@@ -2,9 +2,9 @@
 //! normal is +z. Directions `wo` (towards the viewer) and `wi` (towards the light) are unit
 //! vectors in that frame.
 
-use std::f32::consts::{FRAC_1_PI, PI, TAU};
+use std::f32::consts::{FRAC_1_PI, PI};
 
-use crate::math::Vec3;
+use crate::math::{exp_nonpositive, sincos_turns, Vec3};
 use crate::scene::Material;
 
 /// A sampled incident direction and its weight f * |cos| / pdf.
@@ -159,7 +159,7 @@ fn beckmann_d(alpha: f32, h: Vec3) -> f32 {
     let cos2 = h.z * h.z;
     let tan2 = (1.0 - cos2).max(0.0) / cos2;
     let a2 = alpha * alpha;
-    (-tan2 / a2).exp() / (PI * a2 * cos2 * cos2)
+    exp_nonpositive(-tan2 / a2) / (PI * a2 * cos2 * cos2)
 }
 
 /// Samples a half vector with pdf D(h) cos(theta_h).
@@ -167,8 +167,10 @@ fn sample_beckmann(alpha: f32, u1: f32, u2: f32) -> Vec3 {
     let tan2 = -alpha * alpha * (1.0 - u1).max(f32::MIN_POSITIVE).ln();
     let cos_t = 1.0 / (1.0 + tan2).sqrt();
     let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-    let phi = TAU * u2;
-    Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t)
+    // The angle 2 pi u2 by `sincos_turns`, which the lanes repeat (libm's `sinf` and `cosf`
+    // there cost a call per lane).
+    let (sin_phi, cos_phi) = sincos_turns(u2);
+    Vec3::new(sin_t * cos_phi, sin_t * sin_phi, cos_t)
 }
 
 /// Smith shadowing-masking for Beckmann (rational approximation of Walter et al. 2007).

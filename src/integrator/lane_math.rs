@@ -5,7 +5,7 @@
 use std::f32::consts::TAU;
 
 use super::diffuse::LANES;
-use crate::math::{Vec3, COS_COEFFS, SIN_COEFFS};
+use crate::math::{Vec3, COS_COEFFS, EXP_COEFFS, LN2_PARTS, POW2_STEPS, ROUND_MAGIC, SIN_COEFFS};
 use crate::simd::{Arith, SimdF32, VFloat};
 
 pub(super) type V = VFloat<LANES>;
@@ -157,6 +157,26 @@ pub(super) fn sincos_turns(u: V) -> (V, V) {
     let neg_sin = quadrant.simd_eq(V::splat(2.0)) | quadrant.simd_eq(V::splat(3.0));
     let neg_cos = quadrant.simd_eq(one) | quadrant.simd_eq(V::splat(2.0));
     (V::select(neg_sin, neg(s), s), V::select(neg_cos, neg(c), c))
+}
+
+/// `math::exp_nonpositive` lane by lane: the same operations in the same order.
+#[inline(always)]
+pub(super) fn exp_nonpositive(x: V) -> V {
+    let (zero, one, magic) = (V::splat(0.0), V::splat(1.0), V::splat(ROUND_MAGIC));
+    let n = (x * V::splat(std::f32::consts::LOG2_E) + magic) - magic;
+    let r = (x - n * V::splat(LN2_PARTS[0])) - n * V::splat(LN2_PARTS[1]);
+    let [p0, p1, p2, p3, p4, p5] = EXP_COEFFS.map(V::splat);
+    let p = ((((p0 * r + p1) * r + p2) * r + p3) * r + p4) * r + p5;
+    let er = (p * (r * r) + r) + one;
+    let mut m = min(neg(n), V::splat(126.0));
+    let mut scale = one;
+    for (k, &power) in POW2_STEPS.iter().enumerate() {
+        let step = V::splat((64 >> k) as f32);
+        let take = m.simd_ge(step);
+        scale = V::select(take, scale * V::splat(power), scale);
+        m = V::select(take, m - step, m);
+    }
+    V::select(x.simd_lt(V::splat(-87.0)), zero, er * scale)
 }
 
 /// `bsdf::cosine_hemisphere`, lane by lane.

@@ -1,14 +1,15 @@
 //! The course's microfacet BSDF (`bsdf`: Beckmann distribution, Smith shadowing, conductor
 //! Fresnel) over `LANES` vertices, for `diffuse`'s lanes. Each function repeats its scalar
 //! namesake's operations in its order, so that lanes and scalar code agree bit for bit
-//! (tests/lighting.rs); the transcendental functions (`exp`, `ln`, `sin`, `cos`) are the
-//! standard library's, lane by lane, for the same reason. A branch of the scalar code is a
-//! select here: every lane computes every case and keeps the one its scalar twin takes.
+//! (tests/lighting.rs): `exp` and the sampled angle's sine and cosine are our own polynomials
+//! in both (`math::exp_nonpositive`, `math::sincos_turns`), `ln` the standard library's, lane
+//! by lane. A branch of the scalar code is a select here: every lane computes every case and
+//! keeps the one its scalar twin takes.
 
-use std::f32::consts::{PI, TAU};
+use std::f32::consts::PI;
 
 use super::bsdf::MAX_CONDUCTOR_INDEX;
-use super::lane_math::{gt, max, min, per_lane, Lanes, V, V3};
+use super::lane_math::{exp_nonpositive, gt, max, min, per_lane, sincos_turns, Lanes, V, V3};
 use crate::math::Vec3;
 use crate::simd::SimdF32;
 
@@ -66,8 +67,7 @@ fn beckmann_d(m: &MicrofacetLanes, h: V3) -> V {
     let cos2 = h.z * h.z;
     let tan2 = max(one - cos2, zero) / cos2;
     let a2 = alpha * alpha;
-    let d =
-        per_lane(V::splat(-1.0) * tan2 / a2, m.bits, f32::exp) / (V::splat(PI) * a2 * cos2 * cos2);
+    let d = exp_nonpositive(V::splat(-1.0) * tan2 / a2) / (V::splat(PI) * a2 * cos2 * cos2);
     V::select(h.z.simd_le(zero), zero, d)
 }
 
@@ -161,12 +161,8 @@ pub(super) fn sample(m: &MicrofacetLanes, wo: V3, u1: V, u2: V) -> MicrofacetSam
     let tan2 = V::splat(-1.0) * m.alpha * m.alpha * ln;
     let cos_t = one / (one + tan2).sqrt();
     let sin_t = max(one - cos_t * cos_t, zero).sqrt();
-    let phi = V::splat(TAU) * u2;
-    let h = V3 {
-        x: sin_t * per_lane(phi, m.bits, f32::cos),
-        y: sin_t * per_lane(phi, m.bits, f32::sin),
-        z: cos_t,
-    };
+    let (sin_phi, cos_phi) = sincos_turns(u2);
+    let h = V3 { x: sin_t * cos_phi, y: sin_t * sin_phi, z: cos_t };
     let wi = h.scale(V::splat(2.0) * wo.dot(h)).sub(wo);
     let pdf = pdf_of_half(m, wo, h);
     let f = f_facing(m, wo, wi);

@@ -147,6 +147,49 @@ fn cos_poly(z: f32) -> f32 {
     ((c3 * z + c2) * z + c1) * z * z - 0.5 * z + 1.0
 }
 
+/// e^x for x <= 0 (x below -87, where e^x is under 2^-125, gives 0; NaN stays NaN): x = n ln 2
+/// + r with |r| <= ln 2 / 2 (ln 2 in two parts, Cody and Waite), e^r by Cephes' `expf`
+/// polynomial, 2^n as the product of the powers 2^-64, ..., 2^-1 that -n's bits pick. Only +,
+/// -, * and comparisons, in an order that `integrator::microfacet_lanes` repeats lane by lane,
+/// so that scalar and SIMD shading agree bit for bit in every build; libm's `expf` called lane
+/// by lane took 2% of a glossy render (PERF.md "Whole renders"). Relative error under 2.5e-7
+/// (`exp_nonpositive_matches_f64`).
+#[inline]
+pub(crate) fn exp_nonpositive(x: f32) -> f32 {
+    let n = (x * std::f32::consts::LOG2_E + ROUND_MAGIC) - ROUND_MAGIC;
+    let r = (x - n * LN2_PARTS[0]) - n * LN2_PARTS[1];
+    let [p0, p1, p2, p3, p4, p5] = EXP_COEFFS;
+    let p = ((((p0 * r + p1) * r + p2) * r + p3) * r + p4) * r + p5;
+    let er = (p * (r * r) + r) + 1.0;
+    // At most 126 steps down: the lanes' garbage (infinite -n) stays out of subnormals.
+    let mut m = (-n).min(126.0);
+    let mut scale = 1.0;
+    for (k, &power) in POW2_STEPS.iter().enumerate() {
+        let step = (64 >> k) as f32;
+        if m >= step {
+            scale *= power;
+            m -= step;
+        }
+    }
+    if x < -87.0 {
+        0.0
+    } else {
+        er * scale
+    }
+}
+
+/// 1.5 x 2^23: added to and subtracted from a float below 2^22 in magnitude, it rounds it to
+/// an integer (ties to even).
+pub(crate) const ROUND_MAGIC: f32 = 12_582_912.0;
+/// ln 2 = LN2_PARTS[0] + LN2_PARTS[1], the first exact in few bits (Cephes `expf`).
+pub(crate) const LN2_PARTS: [f32; 2] = [0.693_359_4, -2.121_944_4e-4];
+/// e^r = 1 + r + r^2 (p5 + r (p4 + ...)) on |r| <= ln 2 / 2 (Cephes `expf`).
+pub(crate) const EXP_COEFFS: [f32; 6] =
+    [1.987_569_1e-4, 1.398_199_9e-3, 8.333_452e-3, 4.166_579_6e-2, 1.666_666_5e-1, 5.000_000_1e-1];
+/// 2^-64, 2^-32, ..., 2^-1: the factors of 2^n, largest step first.
+pub(crate) const POW2_STEPS: [f32; 7] =
+    [5.421_011e-20, 2.328_306_4e-10, 1.525_878_9e-5, 3.906_25e-3, 6.25e-2, 0.25, 0.5];
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -159,6 +202,26 @@ mod tests {
         let unit = Aabb { min: Vec3::ZERO, max: Vec3::ONE };
         assert_eq!(unit.diagonal(), Vec3::ONE.length());
         assert_eq!(Aabb::EMPTY.diagonal(), 0.0);
+    }
+
+    #[test]
+    fn exp_nonpositive_matches_f64() {
+        let mut worst = 0.0f64;
+        let n = 1 << 20;
+        for k in 0..=n {
+            let x = -87.0 * k as f32 / n as f32;
+            let want = (x as f64).exp();
+            worst = worst.max(((exp_nonpositive(x) as f64 - want) / want).abs());
+        }
+        assert!(worst < 2.5e-7, "worst relative error {worst:e}");
+        assert_eq!(exp_nonpositive(0.0), 1.0);
+        assert_eq!(exp_nonpositive(-0.0), 1.0);
+        assert_eq!(exp_nonpositive(-87.5), 0.0);
+        assert_eq!(exp_nonpositive(f32::NEG_INFINITY), 0.0);
+        assert!(exp_nonpositive(f32::NAN).is_nan());
+        for (k, &p) in POW2_STEPS.iter().enumerate() {
+            assert_eq!(p, 2f32.powi(-(64 >> k)), "step {k}");
+        }
     }
 
     #[test]
