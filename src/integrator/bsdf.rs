@@ -4,7 +4,7 @@
 
 use std::f32::consts::{FRAC_1_PI, PI};
 
-use crate::math::{exp_nonpositive, sincos_turns, Vec3};
+use crate::math::{exp_nonpositive, ln_unit, sincos_turns, Vec3};
 use crate::scene::Material;
 
 /// A sampled incident direction and its weight f * |cos| / pdf.
@@ -164,7 +164,7 @@ fn beckmann_d(alpha: f32, h: Vec3) -> f32 {
 
 /// Samples a half vector with pdf D(h) cos(theta_h).
 fn sample_beckmann(alpha: f32, u1: f32, u2: f32) -> Vec3 {
-    let tan2 = -alpha * alpha * (1.0 - u1).max(f32::MIN_POSITIVE).ln();
+    let tan2 = -alpha * alpha * ln_unit((1.0 - u1).max(f32::MIN_POSITIVE));
     let cos_t = 1.0 / (1.0 + tan2).sqrt();
     let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
     // The angle 2 pi u2 by `sincos_turns`, which the lanes repeat (libm's `sinf` and `cosf`

@@ -5,7 +5,9 @@
 use std::f32::consts::TAU;
 
 use super::diffuse::LANES;
-use crate::math::{Vec3, COS_COEFFS, EXP_COEFFS, LN2_PARTS, POW2_STEPS, ROUND_MAGIC, SIN_COEFFS};
+use crate::math::{
+    Vec3, COS_COEFFS, EXP_COEFFS, LN2_PARTS, LN_COEFFS, POW2_STEPS, ROUND_MAGIC, SIN_COEFFS,
+};
 use crate::simd::{Arith, SimdF32, VFloat};
 
 pub(super) type V = VFloat<LANES>;
@@ -177,6 +179,29 @@ pub(super) fn exp_nonpositive(x: V) -> V {
         m = V::select(take, m - step, m);
     }
     V::select(x.simd_lt(V::splat(-87.0)), zero, er * scale)
+}
+
+/// `math::ln_unit` lane by lane: the same operations in the same order.
+#[inline(always)]
+pub(super) fn ln_unit(y: V) -> V {
+    let (mut m, mut e) = (y, V::splat(0.0));
+    for (k, &power) in POW2_STEPS.iter().enumerate() {
+        let step = V::splat((64 >> k) as f32);
+        let take = m.simd_lt(V::splat(2.0 * power));
+        m = V::select(take, m * V::splat(1.0 / power), m);
+        e = V::select(take, e - step, e);
+    }
+    let high = gt(m, V::splat(std::f32::consts::SQRT_2));
+    m = V::select(high, m * V::splat(0.5), m);
+    e = V::select(high, e + V::splat(1.0), e);
+    let x = m - V::splat(1.0);
+    let z = x * x;
+    let mut p = V::splat(LN_COEFFS[0]);
+    for &c in &LN_COEFFS[1..] {
+        p = p * x + V::splat(c);
+    }
+    let y = ((p * x * z + e * V::splat(LN2_PARTS[1])) - V::splat(0.5) * z) + x;
+    y + e * V::splat(LN2_PARTS[0])
 }
 
 /// `bsdf::cosine_hemisphere`, lane by lane.

@@ -1,25 +1,22 @@
 //! The course's microfacet BSDF (`bsdf`: Beckmann distribution, Smith shadowing, conductor
 //! Fresnel) over `LANES` vertices, for `diffuse`'s lanes. Each function repeats its scalar
 //! namesake's operations in its order, so that lanes and scalar code agree bit for bit
-//! (tests/lighting.rs): `exp` and the sampled angle's sine and cosine are our own polynomials
-//! in both (`math::exp_nonpositive`, `math::sincos_turns`), `ln` the standard library's, lane
-//! by lane. A branch of the scalar code is a select here: every lane computes every case and
-//! keeps the one its scalar twin takes.
+//! (tests/lighting.rs): `exp`, `ln` and the sampled angle's sine and cosine are our own
+//! polynomials in both (`math::exp_nonpositive`, `math::ln_unit`, `math::sincos_turns`). A
+//! branch of the scalar code is a select here: every lane computes every case and keeps the one
+//! its scalar twin takes.
 
 use std::f32::consts::PI;
 
 use super::bsdf::MAX_CONDUCTOR_INDEX;
-use super::lane_math::{exp_nonpositive, gt, max, min, per_lane, sincos_turns, Lanes, V, V3};
+use super::lane_math::{exp_nonpositive, gt, ln_unit, max, min, sincos_turns, Lanes, V, V3};
 use crate::math::Vec3;
 use crate::simd::SimdF32;
 
 /// The microfacet parameters of the lanes that hold a microfacet vertex (`mask`); the other
-/// lanes (diffuse or unused) hold whatever was there, their transcendental functions read
-/// zero, and their results are not used.
+/// lanes (diffuse or unused) hold whatever was there, and their results are not used.
 pub(super) struct MicrofacetLanes {
     pub(super) mask: V,
-    /// `mask` as bits: the lanes whose transcendental functions are computed.
-    bits: u32,
     pub(super) alpha: V,
     pub(super) eta: V3,
     pub(super) k: V3,
@@ -51,7 +48,6 @@ impl MicrofacetParams {
     pub(super) fn lanes(&self) -> Option<MicrofacetLanes> {
         (self.mask != 0).then(|| MicrofacetLanes {
             mask: V::from_bitmask(self.mask),
-            bits: self.mask,
             alpha: V::load(&self.alpha),
             eta: V3::load(&self.eta),
             k: V3::load(&self.k),
@@ -157,7 +153,7 @@ pub(super) struct MicrofacetSample {
 pub(super) fn sample(m: &MicrofacetLanes, wo: V3, u1: V, u2: V) -> MicrofacetSample {
     let (zero, one) = (V::splat(0.0), V::splat(1.0));
     // `bsdf::sample_beckmann`.
-    let ln = per_lane(max(one - u1, V::splat(f32::MIN_POSITIVE)), m.bits, f32::ln);
+    let ln = ln_unit(max(one - u1, V::splat(f32::MIN_POSITIVE)));
     let tan2 = V::splat(-1.0) * m.alpha * m.alpha * ln;
     let cos_t = one / (one + tan2).sqrt();
     let sin_t = max(one - cos_t * cos_t, zero).sqrt();
