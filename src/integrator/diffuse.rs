@@ -438,12 +438,10 @@ fn shade_lanes<const MICRO: bool, const DELTA: bool>(
             out.shadows.push(shadow_ray(ctx, &v, micro, &ls, w / V::splat(n as f32)));
         }
     }
-    // As in `path::shade_hit`, MIS continues from the last vertex too (the BSDF half).
-    // Specular vertices continue at the last depth too (`path::shade_hit`).
+    // As in `path::shade_hit`: MIS (the BSDF half) and specular vertices go on at the last depth.
     let smooth_continues = depth + 1 < ctx.max_depth || direct == DirectLighting::Mis;
     let continues = smooth_continues || DELTA;
-    // The microfacet lanes' BSDF sample, drawn once for the weighing and the continuation,
-    // which read the same numbers (each used to draw its own: the same bits twice).
+    // The microfacet lanes' BSDF sample, once for the weighing and the continuation.
     let bsdf = micro
         .filter(|_| weigh.is_some() || continues)
         .map(|m| microfacet_lanes::sample(m, v.wo, number(layout.bsdf, 0), number(layout.bsdf, 1)));
@@ -456,8 +454,8 @@ fn shade_lanes<const MICRO: bool, const DELTA: bool>(
     out.bounce.valid = 0;
     if continues {
         let delta = if DELTA { Some(&lanes.delta) } else { None };
-        let kinds = (micro, delta, smooth_continues);
-        continue_diffuse(ctx, depth, layout, &v, kinds, bsdf.as_ref(), &number, &mut out.bounce);
+        let kinds = (micro.zip(bsdf.as_ref()), delta, smooth_continues);
+        continue_diffuse(ctx, depth, layout, &v, kinds, &number, &mut out.bounce);
     }
 }
 
@@ -589,8 +587,8 @@ fn hemisphere_probe(
 }
 
 /// `path::continue_path` for a diffuse vertex (a cosine-weighted bounce), a microfacet one (a
-/// Beckmann-sampled bounce, `kinds.0`, whose sample is `bsdf`) or a specular one (`kinds.1`),
-/// with roulette; the smooth lanes continue only if `kinds.2`.
+/// Beckmann-sampled bounce, `kinds.0`: the lanes and their sample) or a specular one
+/// (`kinds.1`), with roulette; the smooth lanes continue only if `kinds.2`.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn continue_diffuse(
@@ -598,8 +596,7 @@ fn continue_diffuse(
     depth: u32,
     layout: &DrawLayout,
     v: &Vertex,
-    kinds: (Option<&MicrofacetLanes>, Option<&DeltaParams>, bool),
-    bsdf: Option<&MicrofacetSample>,
+    kinds: (Option<(&MicrofacetLanes, &MicrofacetSample)>, Option<&DeltaParams>, bool),
     number: &impl Fn(usize, usize) -> V,
     out: &mut BounceLanes,
 ) {
@@ -611,7 +608,7 @@ fn continue_diffuse(
     let mut pdf = wi.z * V::splat(FRAC_1_PI);
     let mut valid = used & gt(wo.z, zero) & gt(wi.z, zero);
     let mut weight = v.albedo;
-    if let (Some(m), Some(s)) = (micro, bsdf) {
+    if let Some((m, s)) = micro {
         wi = V3::select(m.mask, s.wi, wi);
         pdf = V::select(m.mask, s.pdf, pdf);
         valid = used & V::select(m.mask, s.valid, valid);

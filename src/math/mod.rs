@@ -147,13 +147,13 @@ fn cos_poly(z: f32) -> f32 {
     ((c3 * z + c2) * z + c1) * z * z - 0.5 * z + 1.0
 }
 
-/// e^x for x <= 0 (x below -87, where e^x is under 2^-125, gives 0; NaN stays NaN): x = n ln 2
-/// + r with |r| <= ln 2 / 2 (ln 2 in two parts, Cody and Waite), e^r by Cephes' `expf`
-/// polynomial, 2^n as the product of the powers 2^-64, ..., 2^-1 that -n's bits pick. Only +,
-/// -, * and comparisons, in an order that `integrator::microfacet_lanes` repeats lane by lane,
-/// so that scalar and SIMD shading agree bit for bit in every build; libm's `expf` called lane
-/// by lane took 2% of a glossy render (PERF.md "Whole renders"). Relative error under 2.5e-7
-/// (`exp_nonpositive_matches_f64`).
+/// e^x for x <= 0 (x below -87, where e^x is under 2^-125, gives 0; NaN stays NaN): x is
+/// n ln 2 plus r, |r| <= ln 2 / 2 (ln 2 in two parts, Cody and Waite), e^r by Cephes' `expf`
+/// polynomial, 2^n as the product of the powers 2^-64, ..., 2^-1 that -n's bits pick. Only
+/// additions, subtractions, products and comparisons, in an order that
+/// `integrator::microfacet_lanes` repeats lane by lane, so that scalar and SIMD shading agree
+/// bit for bit in every build; libm's `expf` called lane by lane took 2% of a glossy render
+/// (PERF.md "Whole renders"). Relative error under 2.5e-7 (`exp_nonpositive_matches_f64`).
 #[inline]
 pub(crate) fn exp_nonpositive(x: f32) -> f32 {
     let n = (x * std::f32::consts::LOG2_E + ROUND_MAGIC) - ROUND_MAGIC;
@@ -180,8 +180,8 @@ pub(crate) fn exp_nonpositive(x: f32) -> f32 {
 
 /// ln y for y in [f32::MIN_POSITIVE, 1] (the Beckmann sample's 1 - u): y scaled into [1, 2) by
 /// the powers 2^64, ..., 2^1 that it needs (y = m 2^e), m halved above sqrt 2, then Cephes'
-/// `logf` polynomial in m - 1 and e ln 2 in two parts. Only +, -, * and comparisons, as
-/// `exp_nonpositive`, so that the lanes repeat it bit for bit in every build; error under 1.5e-7
+/// `logf` polynomial in m - 1 and e ln 2 in two parts. Only additions, subtractions, products
+/// and comparisons, as `exp_nonpositive`, so that the lanes repeat it bit for bit in every build; error under 1.5e-7
 /// absolute plus 1.5e-7 relative (`ln_unit_matches_f64`).
 #[inline]
 pub(crate) fn ln_unit(y: f32) -> f32 {
@@ -218,7 +218,7 @@ pub(crate) const LN_COEFFS: [f32; 9] = [
     -1.666_805_8e-1,
     2.000_071_5e-1,
     -2.499_999_4e-1,
-    3.333_333_1e-1,
+    3.333_333e-1,
 ];
 
 /// 1.5 x 2^23: added to and subtracted from a float below 2^22 in magnitude, it rounds it to
@@ -228,7 +228,7 @@ pub(crate) const ROUND_MAGIC: f32 = 12_582_912.0;
 pub(crate) const LN2_PARTS: [f32; 2] = [0.693_359_4, -2.121_944_4e-4];
 /// e^r = 1 + r + r^2 (p5 + r (p4 + ...)) on |r| <= ln 2 / 2 (Cephes `expf`).
 pub(crate) const EXP_COEFFS: [f32; 6] =
-    [1.987_569_1e-4, 1.398_199_9e-3, 8.333_452e-3, 4.166_579_6e-2, 1.666_666_5e-1, 5.000_000_1e-1];
+    [1.987_569_1e-4, 1.398_199_9e-3, 8.333_452e-3, 4.166_579_6e-2, 1.666_666_5e-1, 0.5];
 /// 2^-64, 2^-32, ..., 2^-1: the factors of 2^n, largest step first.
 pub(crate) const POW2_STEPS: [f32; 7] =
     [5.421_011e-20, 2.328_306_4e-10, 1.525_878_9e-5, 3.906_25e-3, 6.25e-2, 0.25, 0.5];
