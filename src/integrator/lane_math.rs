@@ -220,10 +220,9 @@ pub(super) fn uniform_hemisphere(u1: V, u2: V) -> V3 {
     V3 { x: r * cos_phi, y: r * sin_phi, z: u1 }
 }
 
-/// `f(x)` of the standard library in the lanes `bits`, zero in the others. Only the
-/// lanes that need them pay for the calls (in `microfacet_lanes` most of the cost: a chunk of
-/// one microfacet vertex among diffuse ones then costs about one scalar vertex more, not
-/// sixteen).
+/// `f(x)` of the standard library in the lanes `bits`, zero in the others: only the lanes that
+/// need them pay for the calls (the glass lanes' `powi` in `delta_lanes`; the microfacet lanes
+/// have their own polynomials, `exp_nonpositive` and `ln_unit`).
 #[inline(always)]
 pub(super) fn per_lane(x: V, bits: u32, f: impl Fn(f32) -> f32) -> V {
     let (mut a, mut out) = (Lanes::default(), Lanes::default());
