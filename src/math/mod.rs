@@ -181,8 +181,8 @@ pub(crate) fn exp_nonpositive(x: f32) -> f32 {
 /// ln y for y in [f32::MIN_POSITIVE, 1] (the Beckmann sample's 1 - u): y scaled into [1, 2) by
 /// the powers 2^64, ..., 2^1 that it needs (y = m 2^e), m halved above sqrt 2, then Cephes'
 /// `logf` polynomial in m - 1 and e ln 2 in two parts. Only additions, subtractions, products
-/// and comparisons, as `exp_nonpositive`, so that the lanes repeat it bit for bit in every build; error under 1.5e-7
-/// absolute plus 1.5e-7 relative (`ln_unit_matches_f64`).
+/// and comparisons, as `exp_nonpositive`, so that the lanes repeat it bit for bit in every
+/// build; error under 1.5e-7 absolute plus 1.5e-7 relative (`ln_unit_matches_f64`).
 #[inline]
 pub(crate) fn ln_unit(y: f32) -> f32 {
     let (mut m, mut e) = (y, 0.0f32);
