@@ -1,10 +1,10 @@
 //! The course's specular materials (`bsdf`: mirror, glass, refraction) over `LANES` vertices,
 //! for `diffuse`'s lanes: their BSDF samples, as `bsdf::sample` computes them, operation for
-//! operation (`powi` is the standard library's, lane by lane), so that lanes and scalar code
-//! agree bit for bit (tests/lighting.rs). These vertices sample no lights (`path::shade_hit`:
-//! delta lobes have no smooth part), so a sample is all they need.
+//! operation, so that lanes and scalar code agree bit for bit (tests/lighting.rs). These
+//! vertices sample no lights (`path::shade_hit`: delta lobes have no smooth part), so a sample
+//! is all they need.
 
-use super::lane_math::{gt, max, neg, per_lane, Lanes, V, V3};
+use super::lane_math::{gt, max, neg, Lanes, V, V3};
 use crate::math::Vec3;
 use crate::scene::Material;
 use crate::simd::{Arith, SimdF32};
@@ -89,11 +89,12 @@ pub(super) fn sample(d: &DeltaParams, wo: V3, lobe: V) -> DeltaSample {
     let wt =
         V3 { x: neg(eta) * wo.x, y: neg(eta) * wo.y, z: V::select(entering, neg(cos_t), cos_t) };
     // `bsdf::schlick(|wo.z|, ior)`, in the glass lanes.
-    let glass = d.glass;
-    let r0 = per_lane((one - ior) / (one + ior), glass, |x| x.powi(2));
-    let fresnel = r0 + (one - r0) * per_lane(one - cos_i, glass, |x| x.powi(5));
+    let r = (one - ior) / (one + ior);
+    let r0 = r * r;
+    let (x, x2) = (one - cos_i, (one - cos_i) * (one - cos_i));
+    let fresnel = r0 + (one - r0) * (x * (x2 * x2));
     let mirror_lanes = V::from_bitmask(d.mirror);
-    let glass_lanes = V::from_bitmask(glass);
+    let glass_lanes = V::from_bitmask(d.glass);
     let reflect = mirror_lanes | (glass_lanes & (tir | lobe.simd_lt(fresnel)));
     let reflected = V3 { x: neg(wo.x), y: neg(wo.y), z: wo.z };
     let reflectance = V3::load(&d.reflectance);

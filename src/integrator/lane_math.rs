@@ -220,22 +220,6 @@ pub(super) fn uniform_hemisphere(u1: V, u2: V) -> V3 {
     V3 { x: r * cos_phi, y: r * sin_phi, z: u1 }
 }
 
-/// `f(x)` of the standard library in the lanes `bits`, zero in the others: only the lanes that
-/// need them pay for the calls (the glass lanes' `powi` in `delta_lanes`; the microfacet lanes
-/// have their own polynomials, `exp_nonpositive` and `ln_unit`).
-#[inline(always)]
-pub(super) fn per_lane(x: V, bits: u32, f: impl Fn(f32) -> f32) -> V {
-    let (mut a, mut out) = (Lanes::default(), Lanes::default());
-    x.store(&mut a);
-    let mut b = bits;
-    while b != 0 {
-        let l = b.trailing_zeros() as usize;
-        b &= b - 1;
-        out[l] = f(a[l]);
-    }
-    V::load(&out)
-}
-
 /// The spawn-point offset of `RenderContext::ray_epsilon`, per lane.
 #[inline(always)]
 pub(super) fn ray_epsilon(p: V3, scene_epsilon: f32) -> V {
