@@ -91,7 +91,8 @@ pub(super) fn sample(d: &DeltaParams, wo: V3, lobe: V) -> DeltaSample {
     // `bsdf::schlick(|wo.z|, ior)`, in the glass lanes.
     let r = (one - ior) / (one + ior);
     let r0 = r * r;
-    let (x, x2) = (one - cos_i, (one - cos_i) * (one - cos_i));
+    let x = one - cos_i;
+    let x2 = x * x;
     let fresnel = r0 + (one - r0) * (x * (x2 * x2));
     let mirror_lanes = V::from_bitmask(d.mirror);
     let glass_lanes = V::from_bitmask(d.glass);

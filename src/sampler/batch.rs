@@ -49,15 +49,14 @@ impl DrawBatch {
     /// Draws every planned number for the paths `order` names (queue order) among `samplers`.
     pub fn draw(&mut self, kind: SamplerKind, samplers: &mut [PathSampler], order: &[u32]) {
         if self.slots.is_empty() {
-            self.numbers.clear();
             return; // Nothing planned (normal shading, or vertices past the last depth).
         }
         let stride = self.slots.len();
         // Grown, never cleared or shrunk: every number a vertex reads is written below, so
-        // old values need no zeroing, and a batch that shrank at a deep bounce does not zero
-        // its growth again at the next tile's camera rays (clearing and refilling had zeroed
-        // the whole batch per depth: a memset of 1% of a `-m 5` render's instructions;
-        // resizing to each depth's length still zeroed 0.26%).
+        // old values need no zeroing, and a batch that shrank at a deep bounce (or emptied at
+        // the last depth) does not zero its growth again at the next tile's camera rays
+        // (clearing and refilling had zeroed the whole batch per depth: a memset of 1% of a
+        // `-m 5` render's instructions; resizing to each depth's length still zeroed 0.26%).
         let needed = order.len().div_ceil(LANES) * 2 * LANES * stride;
         if self.numbers.len() < needed {
             self.numbers.resize(needed, 0.0);
