@@ -4,7 +4,7 @@
 
 use super::diffuse::LANES;
 use super::lane_math::{cosine_hemisphere, gt, max, min, neg, normalize_or, Frame, Lanes, V, V3};
-use super::lights::TriangleEmitter;
+use super::lights::EmitterRows;
 use super::rectangle::{Rectangle, CORNER_WEIGHT_FLOOR};
 use super::RenderContext;
 use crate::math::Vec3;
@@ -147,23 +147,22 @@ fn sample_linear(xi: V, a: V, b: V) -> V {
 /// look-up), the point and its pdf in lanes.
 #[inline(always)]
 pub(super) fn sample_triangle_emitter(ctx: &RenderContext, p: V3, u0: V, u1: V) -> LightLanes {
-    // Each lane's emitter as two 8-float records (zeros where none is picked), then lanes by
-    // two transposes: the 14 fields stored lane by lane made 224 scalar stores per batch.
+    // Each lane's emitter as two 8-float rows, then lanes by two transposes: the 14 fields
+    // stored lane by lane made 224 scalar stores per batch. The rows are read in place (copied
+    // into an array of records first, they cost a call and a 512-byte copy per chunk).
+    const NONE: EmitterRows = [[0.0; 8]; 2];
     let mut u0_rescaled: Lanes = [0.0; LANES];
     let mut u0_lanes: Lanes = [0.0; LANES];
     u0.store(&mut u0_lanes);
     let mut picked = 0u32;
-    // Each record written once (a zeroed array first cost a 1 KiB memset per chunk).
-    let records: [[[f32; 8]; 2]; LANES] =
-        std::array::from_fn(|l| match ctx.lights.pick_triangle_emitter(u0_lanes[l]) {
-            Some((t, u)) => {
-                (u0_rescaled[l], picked) = (u, picked | 1 << l);
-                emitter_records(&t)
-            }
-            None => [[0.0; 8]; 2],
-        });
-    let [ax, ay, az, bx, by, bz, cx, cy] = V::columns8(LANES, |l| records[l][0]);
-    let [cz, rx, ry, rz, pick_pdf, area, _, _] = V::columns8(LANES, |l| records[l][1]);
+    let mut rows: [&EmitterRows; LANES] = [&NONE; LANES];
+    for l in 0..LANES {
+        if let Some((r, u)) = ctx.lights.pick_triangle_emitter(u0_lanes[l]) {
+            (rows[l], u0_rescaled[l], picked) = (r, u, picked | 1 << l);
+        }
+    }
+    let [ax, ay, az, bx, by, bz, cx, cy] = V::columns8(LANES, |l| rows[l][0]);
+    let [cz, rx, ry, rz, pick_pdf, area, _, _] = V::columns8(LANES, |l| rows[l][1]);
     let (a, b) = (V3 { x: ax, y: ay, z: az }, V3 { x: bx, y: by, z: bz });
     let c = V3 { x: cx, y: cy, z: cz };
     // `lights::sample_emitter_point` for a triangle.
@@ -186,12 +185,4 @@ pub(super) fn sample_triangle_emitter(ctx: &RenderContext, p: V3, u0: V, u1: V) 
         cos_light: cos_l,
         sampled: V::from_bitmask(picked) & gt(cos_l, zero) & gt(dist, zero),
     }
-}
-
-/// A triangle emitter's fields as two records of 8 floats (corners, then the third corner's
-/// z, radiance, pick pdf and area), so that lanes of emitters are made by two transposes.
-#[inline(always)]
-fn emitter_records(t: &TriangleEmitter) -> [[f32; 8]; 2] {
-    let (a, b, c, r) = (t.a, t.b, t.c, t.radiance);
-    [[a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y], [c.z, r.x, r.y, r.z, t.pick_pdf, t.area, 0.0, 0.0]]
 }

@@ -40,9 +40,14 @@ enum Emitter {
     Sphere(u32),
 }
 
+/// An emissive triangle as the shading lanes read it (`light_lanes::sample_triangle_emitter`):
+/// two rows of 8 floats (corners; the third corner's z, radiance, pick pdf and area), so that
+/// lanes of emitters are made by two transposes.
+pub type EmitterRows = [[f32; 8]; 2];
+
 /// An emissive triangle as `sample_emitter` sees it.
 #[derive(Debug, Clone, Copy, Default)]
-pub struct TriangleEmitter {
+struct TriangleEmitter {
     /// First corner.
     pub a: Vec3,
     /// Second corner.
@@ -57,6 +62,14 @@ pub struct TriangleEmitter {
     pub area: f32,
 }
 
+impl TriangleEmitter {
+    fn rows(&self) -> EmitterRows {
+        let (a, b, c, r) = (self.a, self.b, self.c, self.radiance);
+        let (pdf, area) = (self.pick_pdf, self.area);
+        [[a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y], [c.z, r.x, r.y, r.z, pdf, area, 0.0, 0.0]]
+    }
+}
+
 /// The lights of one render.
 #[derive(Debug, Clone, Default)]
 pub struct LightSet {
@@ -64,10 +77,10 @@ pub struct LightSet {
     /// emissive-geometry mode).
     pub scene_lights: Vec<Light>,
     emitters: Vec<Emitter>,
-    /// Per emitter, what `pick_triangle_emitter` hands out (a default for spheres): computed
+    /// Per emitter, what `pick_triangle_emitter` hands out (zeros for spheres): computed
     /// once here rather than per pick, where the corners' loads, two areas and the pick pdf
     /// were a tenth of a `-m 5 --shading mis` render (PERF.md, "Whole renders").
-    triangle_records: Vec<TriangleEmitter>,
+    triangle_rows: Vec<EmitterRows>,
     /// Emitters picked by power (area x luminance of the emitted radiance) in O(1).
     emitter_table: AliasTable,
     emitter_power: f32,
@@ -161,8 +174,8 @@ impl LightSet {
             }
         }
         set.emitter_table = AliasTable::new(&powers);
-        set.triangle_records =
-            set.emitters.iter().map(|&e| set.triangle_record(scene, e)).collect();
+        set.triangle_rows =
+            set.emitters.iter().map(|&e| set.triangle_record(scene, e).rows()).collect();
         set
     }
 
@@ -207,10 +220,10 @@ impl LightSet {
     /// The first half of `sample_emitter` for triangle emitters: the emitter `u0` picks, and
     /// `u0` rescaled within its share; the same values `sample_emitter` computes.
     #[inline]
-    pub fn pick_triangle_emitter(&self, u0: f32) -> Option<(TriangleEmitter, f32)> {
+    pub fn pick_triangle_emitter(&self, u0: f32) -> Option<(&EmitterRows, f32)> {
         let (i, u0) = self.emitter_table.sample(u0)?;
         let Emitter::Triangle(_) = self.emitters[i] else { return None };
-        Some((self.triangle_records[i], u0))
+        Some((&self.triangle_rows[i], u0))
     }
 
     /// The solid-angle pdf with which `sample_emitter` would have chosen the point that a ray
