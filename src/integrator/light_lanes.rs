@@ -4,7 +4,7 @@
 
 use super::diffuse::LANES;
 use super::lane_math::{cosine_hemisphere, gt, max, min, neg, normalize_or, Frame, Lanes, V, V3};
-use super::lights::EmitterRows;
+use super::lights::{EmitterRows, TRIANGLE_FLAG};
 use super::rectangle::{Rectangle, CORNER_WEIGHT_FLOOR};
 use super::RenderContext;
 use crate::math::Vec3;
@@ -149,20 +149,21 @@ fn sample_linear(xi: V, a: V, b: V) -> V {
 pub(super) fn sample_triangle_emitter(ctx: &RenderContext, p: V3, u0: V, u1: V) -> LightLanes {
     // Each lane's emitter as two 8-float rows, then lanes by two transposes: the 14 fields
     // stored lane by lane made 224 scalar stores per batch. The rows are read in place (copied
-    // into an array of records first, they cost a call and a 512-byte copy per chunk).
+    // into an array of records first, they cost a call and a 512-byte copy per chunk), and
+    // the pick has no branch on which emitter it took: the rows' flag marks the triangles.
     const NONE: EmitterRows = [[0.0; 8]; 2];
     let mut u0_rescaled: Lanes = [0.0; LANES];
     let mut u0_lanes: Lanes = [0.0; LANES];
     u0.store(&mut u0_lanes);
-    let mut picked = 0u32;
     let mut rows: [&EmitterRows; LANES] = [&NONE; LANES];
     for l in 0..LANES {
-        if let Some((r, u)) = ctx.lights.pick_triangle_emitter(u0_lanes[l]) {
-            (rows[l], u0_rescaled[l], picked) = (r, u, picked | 1 << l);
+        if let Some((r, u)) = ctx.lights.pick_emitter_rows(u0_lanes[l]) {
+            (rows[l], u0_rescaled[l]) = (r, u);
         }
     }
     let [ax, ay, az, bx, by, bz, cx, cy] = V::columns8(LANES, |l| rows[l][0]);
-    let [cz, rx, ry, rz, pick_pdf, area, _, _] = V::columns8(LANES, |l| rows[l][1]);
+    let [cz, rx, ry, rz, pick_pdf, area, triangle, _] = V::columns8(LANES, |l| rows[l][1]);
+    const _: () = assert!(TRIANGLE_FLAG == 6);
     let (a, b) = (V3 { x: ax, y: ay, z: az }, V3 { x: bx, y: by, z: bz });
     let c = V3 { x: cx, y: cy, z: cz };
     // `lights::sample_emitter_point` for a triangle.
@@ -183,6 +184,6 @@ pub(super) fn sample_triangle_emitter(ctx: &RenderContext, p: V3, u0: V, u1: V) 
         li: V3 { x: rx, y: ry, z: rz },
         pdf: pick_pdf * dist * dist / (area * cos_l),
         cos_light: cos_l,
-        sampled: V::from_bitmask(picked) & gt(cos_l, zero) & gt(dist, zero),
+        sampled: gt(triangle, zero) & gt(cos_l, zero) & gt(dist, zero),
     }
 }

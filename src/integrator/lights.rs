@@ -40,13 +40,16 @@ enum Emitter {
     Sphere(u32),
 }
 
-/// An emissive triangle as the shading lanes read it (`light_lanes::sample_triangle_emitter`):
-/// two rows of 8 floats (corners; the third corner's z, radiance, pick pdf and area), so that
-/// lanes of emitters are made by two transposes.
+/// An emitter as the shading lanes read it (`light_lanes::sample_triangle_emitter`): two rows
+/// of 8 floats (a triangle's corners; the third corner's z, radiance, pick pdf, area and 1),
+/// so that lanes of emitters are made by two transposes. Zeros for a sphere.
 pub type EmitterRows = [[f32; 8]; 2];
 
+/// Slot of `EmitterRows`' second row that is 1 for a triangle, 0 for a sphere.
+pub const TRIANGLE_FLAG: usize = 6;
+
 /// An emissive triangle as `sample_emitter` sees it.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy)]
 struct TriangleEmitter {
     /// First corner.
     pub a: Vec3,
@@ -66,7 +69,9 @@ impl TriangleEmitter {
     fn rows(&self) -> EmitterRows {
         let (a, b, c, r) = (self.a, self.b, self.c, self.radiance);
         let (pdf, area) = (self.pick_pdf, self.area);
-        [[a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y], [c.z, r.x, r.y, r.z, pdf, area, 0.0, 0.0]]
+        let second = [c.z, r.x, r.y, r.z, pdf, area, 1.0, 0.0];
+        debug_assert_eq!(second[TRIANGLE_FLAG], 1.0);
+        [[a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y], second]
     }
 }
 
@@ -77,7 +82,7 @@ pub struct LightSet {
     /// emissive-geometry mode).
     pub scene_lights: Vec<Light>,
     emitters: Vec<Emitter>,
-    /// Per emitter, what `pick_triangle_emitter` hands out (zeros for spheres): computed
+    /// Per emitter, what `pick_emitter_rows` hands out (zeros for spheres): computed
     /// once here rather than per pick, where the corners' loads, two areas and the pick pdf
     /// were a tenth of a `-m 5 --shading mis` render (PERF.md, "Whole renders").
     triangle_rows: Vec<EmitterRows>,
@@ -131,12 +136,12 @@ impl AliasTable {
         let i = (x as usize).min(n - 1);
         let f = (x - i as f32).clamp(0.0, 1.0);
         let (keep, alias) = self.buckets[i];
-        let below = 1.0 - f32::EPSILON;
-        Some(if f < keep {
-            (i, (f / keep).min(below))
-        } else {
-            (alias as usize, ((f - keep) / (1.0 - keep)).min(below))
-        })
+        // Selects rather than branches: which side of `keep` the number falls is a coin toss,
+        // and the shading lanes pick an emitter per lane (a mispredicted branch in each).
+        let own = f < keep;
+        let (pick, num, den) =
+            if own { (i, f, keep) } else { (alias as usize, f - keep, 1.0 - keep) };
+        Some((pick, (num / den).min(1.0 - f32::EPSILON)))
     }
 }
 
@@ -174,18 +179,17 @@ impl LightSet {
             }
         }
         set.emitter_table = AliasTable::new(&powers);
-        set.triangle_rows =
-            set.emitters.iter().map(|&e| set.triangle_record(scene, e).rows()).collect();
+        set.triangle_rows = set.emitters.iter().map(|&e| set.emitter_rows(scene, e)).collect();
         set
     }
 
-    /// What picking emitter `e` gives `diffuse::shade_diffuse` (a default for a sphere).
-    fn triangle_record(&self, scene: &Scene, e: Emitter) -> TriangleEmitter {
-        let Emitter::Triangle(t) = e else { return TriangleEmitter::default() };
+    /// What picking emitter `e` gives `diffuse::shade_diffuse` (zeros for a sphere).
+    fn emitter_rows(&self, scene: &Scene, e: Emitter) -> EmitterRows {
+        let Emitter::Triangle(t) = e else { return [[0.0; 8]; 2] };
         let [a, b, c] = scene.triangle(t as usize);
         let radiance = emitter_radiance(scene, e);
         let (pick_pdf, area) = (self.emitter_pick_pdf(scene, e), emitter_area(scene, e));
-        TriangleEmitter { a, b, c, radiance, pick_pdf, area }
+        TriangleEmitter { a, b, c, radiance, pick_pdf, area }.rows()
     }
 
     /// Whether there is emissive geometry to sample (never in the course's light set).
@@ -217,12 +221,12 @@ impl LightSet {
         self.emitters.iter().all(|e| matches!(e, Emitter::Triangle(_)))
     }
 
-    /// The first half of `sample_emitter` for triangle emitters: the emitter `u0` picks, and
-    /// `u0` rescaled within its share; the same values `sample_emitter` computes.
+    /// The first half of `sample_emitter`, as the shading lanes read it: the rows of the
+    /// emitter `u0` picks (`TRIANGLE_FLAG` 0 for a sphere), and `u0` rescaled within its
+    /// share; the same values `sample_emitter` computes. `None` without emitters.
     #[inline]
-    pub fn pick_triangle_emitter(&self, u0: f32) -> Option<(&EmitterRows, f32)> {
+    pub fn pick_emitter_rows(&self, u0: f32) -> Option<(&EmitterRows, f32)> {
         let (i, u0) = self.emitter_table.sample(u0)?;
-        let Emitter::Triangle(_) = self.emitters[i] else { return None };
         Some((&self.triangle_rows[i], u0))
     }
 
