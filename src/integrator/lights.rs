@@ -45,35 +45,8 @@ enum Emitter {
 /// so that lanes of emitters are made by two transposes. Zeros for a sphere.
 pub type EmitterRows = [[f32; 8]; 2];
 
-/// Slot of `EmitterRows`' second row that is 1 for a triangle, 0 for a sphere.
+/// The slot of `EmitterRows`' second row that is 1 for a triangle, 0 for a sphere.
 pub const TRIANGLE_FLAG: usize = 6;
-
-/// An emissive triangle as `sample_emitter` sees it.
-#[derive(Debug, Clone, Copy)]
-struct TriangleEmitter {
-    /// First corner.
-    pub a: Vec3,
-    /// Second corner.
-    pub b: Vec3,
-    /// Third corner.
-    pub c: Vec3,
-    /// The emitted radiance.
-    pub radiance: Vec3,
-    /// The probability of picking it (its share of the emitters' power).
-    pub pick_pdf: f32,
-    /// Its area.
-    pub area: f32,
-}
-
-impl TriangleEmitter {
-    fn rows(&self) -> EmitterRows {
-        let (a, b, c, r) = (self.a, self.b, self.c, self.radiance);
-        let (pdf, area) = (self.pick_pdf, self.area);
-        let second = [c.z, r.x, r.y, r.z, pdf, area, 1.0, 0.0];
-        debug_assert_eq!(second[TRIANGLE_FLAG], 1.0);
-        [[a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y], second]
-    }
-}
 
 /// The lights of one render.
 #[derive(Debug, Clone, Default)]
@@ -85,7 +58,7 @@ pub struct LightSet {
     /// Per emitter, what `pick_emitter_rows` hands out (zeros for spheres): computed
     /// once here rather than per pick, where the corners' loads, two areas and the pick pdf
     /// were a tenth of a `-m 5 --shading mis` render (PERF.md, "Whole renders").
-    triangle_rows: Vec<EmitterRows>,
+    emitter_rows: Vec<EmitterRows>,
     /// Emitters picked by power (area x luminance of the emitted radiance) in O(1).
     emitter_table: AliasTable,
     emitter_power: f32,
@@ -179,17 +152,19 @@ impl LightSet {
             }
         }
         set.emitter_table = AliasTable::new(&powers);
-        set.triangle_rows = set.emitters.iter().map(|&e| set.emitter_rows(scene, e)).collect();
+        set.emitter_rows = set.emitters.iter().map(|&e| set.rows_of(scene, e)).collect();
         set
     }
 
     /// What picking emitter `e` gives `diffuse::shade_diffuse` (zeros for a sphere).
-    fn emitter_rows(&self, scene: &Scene, e: Emitter) -> EmitterRows {
+    fn rows_of(&self, scene: &Scene, e: Emitter) -> EmitterRows {
         let Emitter::Triangle(t) = e else { return [[0.0; 8]; 2] };
         let [a, b, c] = scene.triangle(t as usize);
-        let radiance = emitter_radiance(scene, e);
+        let r = emitter_radiance(scene, e);
         let (pick_pdf, area) = (self.emitter_pick_pdf(scene, e), emitter_area(scene, e));
-        TriangleEmitter { a, b, c, radiance, pick_pdf, area }.rows()
+        let mut second = [c.z, r.x, r.y, r.z, pick_pdf, area, 0.0, 0.0];
+        second[TRIANGLE_FLAG] = 1.0;
+        [[a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y], second]
     }
 
     /// Whether there is emissive geometry to sample (never in the course's light set).
@@ -227,7 +202,7 @@ impl LightSet {
     #[inline]
     pub fn pick_emitter_rows(&self, u0: f32) -> Option<(&EmitterRows, f32)> {
         let (i, u0) = self.emitter_table.sample(u0)?;
-        Some((&self.triangle_rows[i], u0))
+        Some((&self.emitter_rows[i], u0))
     }
 
     /// The solid-angle pdf with which `sample_emitter` would have chosen the point that a ray
