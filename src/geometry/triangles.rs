@@ -64,7 +64,7 @@ impl TriangleSoa {
         TriangleSoa::from_slots_in(Vec::new(), corners, slots)
     }
 
-    /// [`from_slots`](TriangleSoa::from_slots) into `blocks` (emptied first): a caller that
+    /// `from_slots` (the tests' form) into `blocks` (emptied first): a caller that
     /// gave its capacity huge pages before anything touched it keeps them. Blocks are filled
     /// in parallel (in the caller's rayon pool), each from its own eight slots.
     pub(crate) fn from_slots_in(

@@ -108,11 +108,11 @@ pub fn permute(v: Vec3, k: [usize; 3]) -> V3<f32> {
 /// direction (0, 0, d_kz); sz = 1 / d_kz scales the projected heights to distances.
 #[derive(Clone, Copy, Debug)]
 pub struct Shear<T> {
-    /// d[kx] / d[kz].
+    /// `d[kx] / d[kz]`.
     pub sx: T,
-    /// d[ky] / d[kz].
+    /// `d[ky] / d[kz]`.
     pub sy: T,
-    /// 1 / d[kz].
+    /// `1 / d[kz]`.
     pub sz: T,
 }
 

@@ -224,7 +224,7 @@ pub(crate) const LN_COEFFS: [f32; 9] = [
 /// 1.5 x 2^23: added to and subtracted from a float below 2^22 in magnitude, it rounds it to
 /// an integer (ties to even).
 pub(crate) const ROUND_MAGIC: f32 = 12_582_912.0;
-/// ln 2 = LN2_PARTS[0] + LN2_PARTS[1], the first exact in few bits (Cephes `expf`).
+/// ln 2 = `LN2_PARTS[0] + LN2_PARTS[1]`, the first exact in few bits (Cephes `expf`).
 pub(crate) const LN2_PARTS: [f32; 2] = [0.693_359_4, -2.121_944_4e-4];
 /// e^r = 1 + r + r^2 (p5 + r (p4 + ...)) on |r| <= ln 2 / 2 (Cephes `expf`).
 pub(crate) const EXP_COEFFS: [f32; 6] =

@@ -36,8 +36,9 @@ pub fn collapse(nodes: &[BvhNode], max_leaf: usize) -> Vec<WideNode> {
     collapse_into(Vec::new(), nodes, max_leaf)
 }
 
-/// [`collapse`] into `out` (emptied first), whose capacity a caller may have prepared (huge
-/// pages before anything touched it): `wide_capacity(nodes)` nodes never reallocate.
+/// `collapse` (the tests' form) into `out` (emptied first), whose capacity a caller may have
+/// prepared (huge pages before anything touched it): `wide_capacity(nodes)` nodes never
+/// reallocate.
 pub fn collapse_into(mut out: Vec<WideNode>, nodes: &[BvhNode], max_leaf: usize) -> Vec<WideNode> {
     out.clear();
     let Some(root) = nodes.first() else {
