@@ -8,6 +8,7 @@
 
 mod binary_node;
 pub mod build;
+mod child_order;
 mod hugepage;
 mod leaf;
 pub mod node;

@@ -3,9 +3,9 @@
 //! Every child box of a node is tested against all active lanes at once (one SIMD slab test
 //! per child; in closest-hit packets of 16 rays only the boxes that a conservative test of
 //! the whole packet against all children at once passes, `packet_interval`); entered
-//! children are visited nearest first (by the nearest lane's entry
-//! distance) with one stack shared by the packet, each entry remembering which lanes entered
-//! the subtree and at what distance. Leaves test one triangle against all W rays with the
+//! children are visited nearest first (by the entry distance of the first lane that entered,
+//! `child_order`) with one stack shared by the packet, each entry remembering which lanes
+//! entered the subtree and at what distance. Leaves test one triangle against all W rays with the
 //! same watertight test as the single-ray path, so t, u, v are bit-identical, or test the
 //! lanes one by one against the whole leaf where that is fewer tests (`leaf_by_lane`). When no
 //! more than `fallback` lanes enter an interior subtree, those lanes finish it with single-ray
@@ -20,6 +20,7 @@
 //! ray.
 
 use super::build::MAX_DEPTH;
+use super::child_order;
 use super::leaf::{self, LeafRay};
 use super::packet::{PacketHits, RayPacket, TriangleFrame, BOX_INFLATE};
 use super::packet_interval::PacketInterval;
@@ -141,8 +142,8 @@ impl<V: SimdF32> Default for PacketStack<V> {
 /// distance of the first of them. (The smallest over the lanes ordered no better on the
 /// coherent packets this serves, at four times the instructions.)
 #[inline(always)]
-fn order_key<V: SimdF32>(near: V, lanes: u32) -> f32 {
-    near.lane(lanes.trailing_zeros() as usize)
+fn order_key<V: SimdF32>(near: &V, lanes: u32) -> f32 {
+    near.lane(lanes.trailing_zeros() as usize % V::W)
 }
 
 /// The children of a node that some lanes enter: per slot the lanes and their entry
@@ -194,8 +195,9 @@ impl<V: SimdF32> Entered<V> {
 /// The children of node `n` that some of `lanes` enter. Only the children the packet's
 /// interval pre-test passes (`packet_interval`; all used slots without one) get the exact
 /// per-lane test, all of them before any branch on the outcome; then only the entered ones
-/// are sorted: a branch per child on whether any lane entered it was the hottest spot of
-/// packet traversal (`perf` on maxplanck primary rays; PERF.md, "8-wide nodes").
+/// are ordered (`child_order`): a branch per child on whether any lane entered it was the
+/// hottest spot of packet traversal (`perf` on maxplanck primary rays; PERF.md, "8-wide
+/// nodes").
 #[inline(always)]
 fn entered_children<V: SimdF32>(
     p: &RayPacket<V>,
@@ -205,7 +207,6 @@ fn entered_children<V: SimdF32>(
     e: &mut Entered<V>,
     stats: &mut TraceStats,
 ) {
-    e.k = 0;
     let used = n.children();
     let mut hit = 0;
     match interval {
@@ -227,20 +228,14 @@ fn entered_children<V: SimdF32>(
             }
         }
     }
-    // Insertion into the farthest-first order.
-    while hit != 0 {
-        let i = hit.trailing_zeros() as usize;
-        hit &= hit - 1;
-        let key = order_key(e.near[i], e.lanes[i]);
-        e.key[i] = key;
-        let mut j = e.k;
-        while j > 0 && e.key[e.order[j - 1] as usize] < key {
-            e.order[j] = e.order[j - 1];
-            j -= 1;
-        }
-        e.order[j] = i as u8;
-        e.k += 1;
+    // The entered slots' keys, then their farthest-first order.
+    let mut bits = hit;
+    while bits != 0 {
+        let i = bits.trailing_zeros() as usize % ARITY; // below ARITY: no bounds check
+        bits &= bits - 1;
+        e.key[i] = order_key(&e.near[i], e.lanes[i]);
     }
+    e.k = child_order::farthest_first(&e.key, hit, &mut e.order);
 }
 
 /// Starts loading a pushed child: an interior node always, a leaf's triangle block if
