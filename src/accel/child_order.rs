@@ -1,20 +1,40 @@
 //! The order in which a packet visits the children of a node that its lanes entered: farthest
 //! first by a key per child (the entry distance of its first lane, `traverse_packet`), so that
-//! the stack pops the nearest next.
+//! the stack pops the nearest next. Two ways to the same order, chosen per packet
+//! (`traverse_packet`): where the lanes head into one octant, successive nodes order their
+//! children alike and an insertion sort's branches are predicted; where they scattered, each
+//! node's order is new, and ranks found without data-dependent branches are faster (PERF.md,
+//! "Paired rounds and where the branches go").
 
 use super::wide_node::{ChildLanes, ARITY};
 use crate::simd::SimdF32;
 
 /// Writes the slots of `entered` (bit `i` for slot `i`) farthest first by `keys` into
-/// `order` and returns how many there are; among equal keys the lower slot comes first, as an
-/// insertion sort in slot order places them. Each slot's place is the number of entered slots
-/// farther than it plus the lower ones at the same key, found with one 8-wide comparison per
-/// slot: the insertion sort's data-dependent branches were a quarter of a `-m 5` render's
-/// mispredicted branches in closest-hit packets (PERF.md, "Paired rounds and where the branches
-/// go"). Keys of entered slots must not be NaN (an entered box's entry distance compares); the
-/// others are ignored.
+/// `order` and returns how many there are; among equal keys the lower slot comes first. An
+/// insertion sort in slot order.
 #[inline(always)]
-pub(super) fn farthest_first(keys: &[f32; ARITY], entered: u32, order: &mut [u8; ARITY]) -> usize {
+pub(super) fn by_insertion(keys: &[f32; ARITY], entered: u32, order: &mut [u8; ARITY]) -> usize {
+    let (mut bits, mut k) = (entered, 0);
+    while bits != 0 {
+        let i = bits.trailing_zeros() as usize % ARITY; // below ARITY: no bounds check
+        bits &= bits - 1;
+        let mut j = k;
+        while j > 0 && keys[order[j - 1] as usize % ARITY] < keys[i] {
+            order[j] = order[j - 1];
+            j -= 1;
+        }
+        order[j] = i as u8;
+        k += 1;
+    }
+    k
+}
+
+/// The order of `by_insertion`, each slot's place found as the number of entered slots
+/// farther than it plus the lower ones at the same key, with one 8-wide comparison per slot
+/// and no data-dependent branch. Keys of entered slots must not be NaN (an entered box's
+/// entry distance compares); the others are ignored.
+#[inline(always)]
+pub(super) fn by_rank(keys: &[f32; ARITY], entered: u32, order: &mut [u8; ARITY]) -> usize {
     let all = ChildLanes::new(*keys);
     let mut bits = entered;
     while bits != 0 {
@@ -34,8 +54,8 @@ mod tests {
     use super::*;
     use crate::sampler::Pcg32;
 
-    /// The order an insertion sort in slot order gives (the packets' order before the ranks).
-    fn by_insertion(keys: &[f32; ARITY], entered: u32) -> Vec<u8> {
+    /// The insertion order, as a list: the reference for both.
+    fn reference(keys: &[f32; ARITY], entered: u32) -> Vec<u8> {
         let mut order: Vec<u8> = Vec::new();
         for i in (0..ARITY).filter(|i| entered & (1 << i) != 0) {
             let j = order.iter().position(|&o| keys[o as usize] < keys[i]).unwrap_or(order.len());
@@ -45,7 +65,7 @@ mod tests {
     }
 
     #[test]
-    fn ranks_give_the_insertion_order_with_ties() {
+    fn both_orders_are_the_reference_order_with_ties() {
         let mut rng = Pcg32::new(5, 9);
         for round in 0..2000 {
             // Few distinct values, so that ties are common (rays starting inside several boxes
@@ -63,9 +83,12 @@ mod tests {
                     }
                 }
             }
-            let mut order = [u8::MAX; ARITY];
-            let k = farthest_first(&keys, entered, &mut order);
-            assert_eq!(order[..k], by_insertion(&keys, entered)[..], "keys {keys:?}, {entered:#b}");
+            let want = reference(&keys, entered);
+            for sort in [by_insertion, by_rank] {
+                let mut order = [u8::MAX; ARITY];
+                let k = sort(&keys, entered, &mut order);
+                assert_eq!(order[..k], want[..], "keys {keys:?}, entered {entered:#b}");
+            }
         }
     }
 }

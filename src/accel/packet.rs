@@ -261,6 +261,16 @@ impl<V: SimdF32> RayPacket<V> {
         self.active.bitmask()
     }
 
+    /// Whether the lanes `lanes` head into different octants (a direction sign differs between
+    /// them on some axis): rays that scattered, rather than left one point or one pixel block.
+    #[inline(always)]
+    pub fn mixed_octants(&self, lanes: u32) -> bool {
+        [self.dir.x, self.dir.y, self.dir.z].iter().any(|d| {
+            let neg = d.bitmask() & lanes; // sign bits
+            neg != 0 && neg != lanes
+        })
+    }
+
     /// Lane `i` as a single ray (with the packet's current `t_max`).
     #[inline]
     pub fn ray(&self, i: usize) -> Ray {

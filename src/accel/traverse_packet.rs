@@ -204,6 +204,7 @@ fn entered_children<V: SimdF32>(
     n: &WideNode,
     lanes: u32,
     interval: Option<&PacketInterval>,
+    ranked: bool,
     e: &mut Entered<V>,
     stats: &mut TraceStats,
 ) {
@@ -235,7 +236,11 @@ fn entered_children<V: SimdF32>(
         bits &= bits - 1;
         e.key[i] = order_key(&e.near[i], e.lanes[i]);
     }
-    e.k = child_order::farthest_first(&e.key, hit, &mut e.order);
+    e.k = if ranked {
+        child_order::by_rank(&e.key, hit, &mut e.order)
+    } else {
+        child_order::by_insertion(&e.key, hit, &mut e.order)
+    };
 }
 
 /// Starts loading a pushed child: an interior node always, a leaf's triangle block if
@@ -267,6 +272,7 @@ pub fn intersect<V: SimdF32>(
         return hits;
     }
     let interval = if V::W >= INTERVAL_MIN_W { PacketInterval::new(p, active) } else { None };
+    let ranked = p.mixed_octants(active);
     let mut frame = None;
     let PacketStack { closest: stack, entered: e, .. } = stack;
     stack.clear();
@@ -296,7 +302,7 @@ pub fn intersect<V: SimdF32>(
                 finish_single(nodes, tris, child, &{ near }, lanes, f, p, &mut hits, stats);
             } else {
                 let n = &nodes[child as usize];
-                entered_children(p, n, lanes, interval.as_ref(), e, stats);
+                entered_children(p, n, lanes, interval.as_ref(), ranked, e, stats);
                 if e.k > 0 {
                     // Pushed subtrees start loading now, as in single-ray traversal.
                     stack.extend((0..e.k - 1).map(|j| {
@@ -472,6 +478,8 @@ pub fn occluded<V: SimdF32>(
     }
     // No interval pre-test for occlusion: 0.91x on shadow packets (`INTERVAL_MIN_W`).
     let interval = None;
+    // Insertion even for scattered rays: ranks measured 0.93-0.98x on shadow packets.
+    let ranked = false;
     let mut frame = None;
     let mut blocked = 0u32;
     let PacketStack { any: stack, entered: e, .. } = stack;
@@ -501,7 +509,7 @@ pub fn occluded<V: SimdF32>(
                 });
             } else {
                 let n = &nodes[child as usize];
-                entered_children(p, n, lanes, interval.as_ref(), e, stats);
+                entered_children(p, n, lanes, interval.as_ref(), ranked, e, stats);
                 if e.k > 0 {
                     // Farthest first: push in reverse of the farthest-first order.
                     for j in (1..e.k).rev() {
