@@ -2,9 +2,10 @@
 //! first by a key per child (the entry distance of its first lane, `traverse_packet`), so that
 //! the stack pops the nearest next. Two ways to the same order, chosen per packet
 //! (`traverse_packet`): where the lanes head into one octant, successive nodes order their
-//! children alike and an insertion sort's branches are predicted; where they scattered, each
-//! node's order is new, and ranks found without data-dependent branches are faster (PERF.md,
-//! "Paired rounds and where the branches go").
+//! children alike and an insertion sort's branches are predicted; where a closest-hit
+//! packet's lanes scattered, each node's order is new, and ranks found without data-dependent
+//! branches pay. Shadow packets keep the insertion sort, scattered or not (ranks measured
+//! 0.93-0.98x there; PERF.md, "Paired rounds and where the branches go").
 
 use super::wide_node::{ChildLanes, ARITY};
 use crate::simd::SimdF32;
