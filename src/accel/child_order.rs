@@ -10,15 +10,22 @@
 use super::wide_node::{ChildLanes, ARITY};
 use crate::simd::SimdF32;
 
-/// Writes the slots of `entered` (bit `i` for slot `i`) farthest first by `keys` into
-/// `order` and returns how many there are; among equal keys the lower slot comes first. An
-/// insertion sort in slot order.
+/// Writes the slots of `entered` (bit `i` for slot `i`) farthest first by their keys
+/// `key_of(i)` into `order` and returns how many there are; among equal keys the lower slot
+/// comes first. An insertion sort in slot order, which stores each entered slot's key in
+/// `keys` as it reaches it (one pass over the slots).
 #[inline(always)]
-pub(super) fn by_insertion(keys: &[f32; ARITY], entered: u32, order: &mut [u8; ARITY]) -> usize {
+pub(super) fn by_insertion(
+    keys: &mut [f32; ARITY],
+    key_of: impl Fn(usize) -> f32,
+    entered: u32,
+    order: &mut [u8; ARITY],
+) -> usize {
     let (mut bits, mut k) = (entered, 0);
     while bits != 0 {
         let i = bits.trailing_zeros() as usize % ARITY; // below ARITY: no bounds check
         bits &= bits - 1;
+        keys[i] = key_of(i);
         let mut j = k;
         while j > 0 && keys[order[j - 1] as usize % ARITY] < keys[i] {
             order[j] = order[j - 1];
@@ -85,11 +92,14 @@ mod tests {
                 }
             }
             let want = reference(&keys, entered);
-            for sort in [by_insertion, by_rank] {
-                let mut order = [u8::MAX; ARITY];
-                let k = sort(&keys, entered, &mut order);
-                assert_eq!(order[..k], want[..], "keys {keys:?}, entered {entered:#b}");
-            }
+            let mut ranked = [u8::MAX; ARITY];
+            let k = by_rank(&keys, entered, &mut ranked);
+            assert_eq!(ranked[..k], want[..], "ranks: keys {keys:?}, entered {entered:#b}");
+            // The insertion sort stores the keys it reads: garbage in, the keys out.
+            let mut stored = [f32::NAN; ARITY];
+            let mut sorted = [u8::MAX; ARITY];
+            let k = by_insertion(&mut stored, |i| keys[i], entered, &mut sorted);
+            assert_eq!(sorted[..k], want[..], "insertion: keys {keys:?}, entered {entered:#b}");
         }
     }
 }

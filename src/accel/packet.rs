@@ -261,11 +261,12 @@ impl<V: SimdF32> RayPacket<V> {
         self.active.bitmask()
     }
 
-    /// Whether the lanes `lanes` head into different octants (a direction sign differs between
-    /// them on some axis): rays that scattered, rather than left one point or one pixel block.
+    /// Whether the lanes `lanes` head into different octants (a sign of the reciprocal
+    /// direction, which `safe_recip` keeps from the direction, differs between them on some
+    /// axis): rays that scattered, rather than left one point or one pixel block.
     #[inline(always)]
     pub fn mixed_octants(&self, lanes: u32) -> bool {
-        [self.dir.x, self.dir.y, self.dir.z].iter().any(|d| {
+        [self.inv_dir.x, self.inv_dir.y, self.inv_dir.z].iter().any(|d| {
             let neg = d.bitmask() & lanes; // sign bits
             neg != 0 && neg != lanes
         })

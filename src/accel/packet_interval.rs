@@ -67,13 +67,10 @@ impl PacketInterval {
     /// non-finite origin, reciprocal or t_min, or a NaN t_max.
     #[inline(always)]
     pub fn new<V: SimdF32>(p: &RayPacket<V>, lanes: u32) -> Option<PacketInterval> {
-        let (o, inv) = (&p.origin, &p.inv_dir);
-        for v in [inv.x, inv.y, inv.z] {
-            let neg = v.bitmask() & lanes; // sign bits
-            if neg != 0 && neg != lanes {
-                return None;
-            }
+        if p.mixed_octants(lanes) {
+            return None;
         }
+        let (o, inv) = (&p.origin, &p.inv_dir);
         let sum = o.x + o.y + o.z + inv.x + inv.y + inv.z + p.t_min;
         // NaN compares false; any infinity makes the sum infinite or NaN.
         let finite = sum.abs().simd_lt(V::splat(f32::INFINITY)).bitmask()

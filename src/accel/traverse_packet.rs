@@ -229,17 +229,17 @@ fn entered_children<V: SimdF32>(
             }
         }
     }
-    // The entered slots' keys, then their farthest-first order.
-    let mut bits = hit;
-    while bits != 0 {
-        let i = bits.trailing_zeros() as usize % ARITY; // below ARITY: no bounds check
-        bits &= bits - 1;
-        e.key[i] = order_key(&e.near[i], e.lanes[i]);
-    }
+    let key_of = |i: usize| order_key(&e.near[i], e.lanes[i]);
     e.k = if ranked {
+        let mut bits = hit;
+        while bits != 0 {
+            let i = bits.trailing_zeros() as usize % ARITY; // below ARITY: no bounds check
+            bits &= bits - 1;
+            e.key[i] = key_of(i);
+        }
         child_order::by_rank(&e.key, hit, &mut e.order)
     } else {
-        child_order::by_insertion(&e.key, hit, &mut e.order)
+        child_order::by_insertion(&mut e.key, key_of, hit, &mut e.order)
     };
 }
 
