@@ -176,12 +176,14 @@ pub fn drop_misses(rays: &mut RayQueue, hits: &mut Vec<Option<Hit>>) {
     let Some(first) = hits.iter().position(Option::is_none) else {
         return;
     };
+    let n = hits.len();
+    let (queued, paths) = (&mut rays.rays[..n], &mut rays.path[..n]);
     let mut kept = first;
-    for i in first + 1..hits.len() {
+    for i in first + 1..n {
         if hits[i].is_some() {
-            rays.rays[kept] = rays.rays[i];
-            rays.path[kept] = rays.path[i];
-            hits[kept] = hits[i];
+            // `kept < i < n`: said, so that the writes need no bounds checks of their own.
+            let k = kept.min(i);
+            (queued[k], paths[k], hits[k]) = (queued[i], paths[i], hits[i]);
             kept += 1;
         }
     }
