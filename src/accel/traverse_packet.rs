@@ -271,8 +271,10 @@ pub fn intersect<V: SimdF32>(
     if nodes.is_empty() || active == 0 {
         return hits;
     }
-    let interval = if V::W >= INTERVAL_MIN_W { PacketInterval::new(p, active) } else { None };
+    // Scattered lanes take ranks (`child_order`) and never the interval, which needs one octant.
     let ranked = p.mixed_octants(active);
+    let interval =
+        if V::W >= INTERVAL_MIN_W && !ranked { PacketInterval::new(p, active) } else { None };
     let mut frame = None;
     let PacketStack { closest: stack, entered: e, .. } = stack;
     stack.clear();
