@@ -239,6 +239,7 @@ pub fn render(scene: &Scene, accel: &Accel, config: &RenderConfig) -> crate::Res
         shading_lanes: config.shading_lanes,
         glossy_light_mis: config.glossy_light_mis,
         stage_times: config.stage_times,
+        mixes_specular: scene.mixes_specular(),
         scene_epsilon: 1e-5 * bounds.diagonal().max(f32::MIN_POSITIVE),
     };
     // The image buffers first, so that an image too large for memory is an error before any

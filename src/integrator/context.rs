@@ -61,6 +61,10 @@ pub struct RenderContext<'a> {
     pub glossy_light_mis: bool,
     /// Time the stages of the loop (`wavefront::StageTimes`).
     pub stage_times: bool,
+    /// The scene mixes specular and light-sampling surfaces (`Scene::mixes_specular`): the
+    /// shade stage then puts each queue's specular vertices after the others
+    /// (`wavefront::stages::group_specular`).
+    pub mixes_specular: bool,
     /// Smallest offset for spawned rays: 1e-5 of the scene's bounding-box diagonal.
     pub scene_epsilon: f32,
 }

@@ -65,8 +65,7 @@ pub struct DiffuseLanes {
     prim: [u32; LANES],
     /// Each lane's ray: origin, direction, t_min, t_max.
     rays: [[f32; 8]; LANES],
-    /// Each lane's hit distance `t`, barycentrics `u`, `v`, path throughput (x, y, z) and the
-    /// x and y of its albedo.
+    /// Each lane's hit distance `t`, barycentrics `u`, `v`, throughput (x, y, z), albedo x, y.
     values: [[f32; 8]; LANES],
     albedo_z: Lanes,
     /// A sphere's radius, lane by lane.
@@ -134,8 +133,7 @@ impl DiffuseLanes {
         loaded
     }
 
-    /// Loads a vertex into the next free lane: its path, its ray's queue index, the ray and hit,
-    /// the path's throughput and the diffuse albedo.
+    /// Loads a vertex into the next free lane: path, queue index, ray, hit, throughput, albedo.
     pub fn push(
         &mut self,
         path: u32,
@@ -394,12 +392,14 @@ fn shade_lanes<const MICRO: bool, const DELTA: bool>(
     };
     out.shadows.clear();
     out.probes = direct == DirectLighting::Hemisphere;
-    if out.probes {
+    // Specular lanes sample no lights, and chunks of them only (`stages::group_specular`) skip it.
+    let lit = !DELTA || lanes.used() & !lanes.delta.bits() != 0;
+    if out.probes && lit {
         let n = hemisphere_draws(ctx);
         for k in layout.light..layout.emitter {
             out.shadows.push(hemisphere_probe(ctx, &v, micro, number(k, 0), number(k, 1), n));
         }
-    } else {
+    } else if lit {
         let mut slot = layout.light;
         for light in &ctx.lights.scene_lights {
             let n = if light.is_delta() { 1 } else { ctx.light_samples };
@@ -417,7 +417,7 @@ fn shade_lanes<const MICRO: bool, const DELTA: bool>(
             }
         }
     }
-    if direct == DirectLighting::Mis && ctx.lights.has_emitters() {
+    if lit && direct == DirectLighting::Mis && ctx.lights.has_emitters() {
         let n = ctx.light_samples;
         for k in layout.emitter..layout.bsdf {
             let ls = sample_triangle_emitter(ctx, v.p, number(k, 0), number(k, 1));

@@ -65,6 +65,15 @@ impl Material {
         }
     }
 
+    /// Whether the material scatters only into single directions (mirror, glass, refraction):
+    /// its vertices sample no lights.
+    pub fn is_specular(&self) -> bool {
+        matches!(
+            self,
+            Material::Mirror { .. } | Material::Glass { .. } | Material::Refraction { .. }
+        )
+    }
+
     /// The radiance the material emits: `radiance` for [`Material::Emission`], else zero.
     pub fn emission(&self) -> Vec3 {
         match self {

@@ -118,6 +118,13 @@ impl Scene {
         self.materials.iter().any(|m| matches!(m, Material::Emission { .. }))
     }
 
+    /// Whether the materials include specular ones (`Material::is_specular`) and surfaces
+    /// that are neither specular nor emitters, whose vertices sample lights.
+    pub fn mixes_specular(&self) -> bool {
+        let smooth = |m: &Material| !m.is_specular() && !matches!(m, Material::Emission { .. });
+        self.materials.iter().any(Material::is_specular) && self.materials.iter().any(smooth)
+    }
+
     /// Checks the invariants every consumer relies on: indices in range, finite numbers.
     /// The loader calls this last, so a `Scene` from the loader is always valid. Limits of
     /// the acceleration structure are its own (`Accel::try_build`).

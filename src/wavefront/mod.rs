@@ -423,6 +423,7 @@ fn trace_sample_batch(
         let queued = ws.rays.len();
         timed(ctx.stage_times, &mut times.shade, || {
             stages::drop_misses(&mut ws.rays, &mut ws.hits);
+            stages::group_specular(ctx, depth, &mut ws.rays, &mut ws.hits, &mut ws.shade);
             ws.next_rays.clear();
             ws.shadow.clear();
             ws.probes.clear();

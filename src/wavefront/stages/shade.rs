@@ -35,6 +35,97 @@ pub struct ShadeScratch {
     surfaces: Vec<Surface>,
     lanes: DiffuseLanes,
     lane_out: DiffuseOutputs,
+    /// `group_specular`: each chunk's specular entries as a bit mask, and those entries while
+    /// the others move up.
+    specular_masks: Vec<u32>,
+    specular_rays: RayQueue,
+    specular_hits: Vec<Option<Hit>>,
+}
+
+/// Whether the integrator can shade the surface vertices at `depth` in SIMD lanes; they go
+/// there unless `RenderContext::shading_lanes` is off (`shade`).
+fn lanes_can_apply(ctx: &RenderContext, depth: u32) -> bool {
+    depth < ctx.max_depth && ctx.integrator.shades_diffuse_in_lanes(ctx)
+}
+
+/// Puts the queue's specular vertices (mirror, glass, refraction) after the others, each
+/// group in queue order, where the scene mixes both kinds (`RenderContext::mixes_specular`)
+/// and grouping leaves fewer chunks holding a specular vertex. A chunk runs the specular code
+/// for all its lanes if one is specular, and samples lights for all if one is not: on CBgems
+/// two chunks in three held both. Queue order only decides which vertices share a chunk or a
+/// packet; a path's numbers, hits and sums do not depend on it, so the image does not change.
+pub fn group_specular(
+    ctx: &RenderContext,
+    depth: u32,
+    rays: &mut RayQueue,
+    hits: &mut Vec<Option<Hit>>,
+    scratch: &mut ShadeScratch,
+) {
+    // Not asked of `shading_lanes`: vertices shaded one by one (for tests) see the same queues.
+    if !ctx.mixes_specular || !lanes_can_apply(ctx, depth) {
+        return;
+    }
+    let scene = ctx.scene;
+    let specular = |h: &Option<Hit>| {
+        h.is_some_and(|h| scene.materials[surface_material(scene, h.prim) as usize].is_specular())
+    };
+    // Per chunk of the queue, its specular entries as a bit mask.
+    let masks = &mut scratch.specular_masks;
+    masks.clear();
+    masks.extend(hits.chunks(LANES).map(|chunk| {
+        chunk.iter().enumerate().fold(0u32, |m, (i, h)| m | (specular(h) as u32) << i)
+    }));
+    if !grouping_pays(masks) {
+        return;
+    }
+    move_specular_last(masks, rays, hits, &mut scratch.specular_rays, &mut scratch.specular_hits);
+}
+
+/// Whether grouping would leave fewer chunks holding a specular vertex (`masks`: each chunk's
+/// specular entries). Grouped, they fill whole chunks but for one, plus at most one chunk
+/// shared with the others.
+fn grouping_pays(masks: &[u32]) -> bool {
+    let count = masks.iter().map(|m| m.count_ones() as usize).sum::<usize>();
+    masks.iter().filter(|&&m| m != 0).count() > count.div_ceil(LANES) + 1
+}
+
+/// Moves the entries that `masks` marks (bit `i` of `masks[c]`: entry `c * LANES + i`) behind
+/// the others, each group in queue order; `moved` and `moved_hits` are scratch space.
+fn move_specular_last(
+    masks: &[u32],
+    rays: &mut RayQueue,
+    hits: &mut Vec<Option<Hit>>,
+    moved: &mut RayQueue,
+    moved_hits: &mut Vec<Option<Hit>>,
+) {
+    let count = masks.iter().map(|m| m.count_ones() as usize).sum::<usize>();
+    moved.clear();
+    moved.reserve(count);
+    moved_hits.clear();
+    moved_hits.reserve(count);
+    let n = hits.len();
+    let first_chunk = masks.iter().position(|&m| m != 0).unwrap_or(masks.len());
+    let (queued, paths) = (&mut rays.rays[..n], &mut rays.path[..n]);
+    let mut kept = first_chunk * LANES;
+    for (c, &mask) in masks.iter().enumerate().skip(first_chunk) {
+        for i in c * LANES..((c + 1) * LANES).min(n) {
+            if mask >> (i - c * LANES) & 1 != 0 {
+                moved.push(queued[i], paths[i]);
+                moved_hits.push(hits[i]);
+            } else {
+                // `kept <= i < n`: said, so that the writes need no bounds checks of their own.
+                let k = kept.min(i);
+                (queued[k], paths[k], hits[k]) = (queued[i], paths[i], hits[i]);
+                kept += 1;
+            }
+        }
+    }
+    rays.rays.truncate(kept);
+    rays.path.truncate(kept);
+    hits.truncate(kept);
+    rays.rays.extend_from_slice(&moved.rays);
+    rays.path.extend_from_slice(&moved.path);
+    hits.extend_from_slice(moved_hits);
 }
 
 /// Shades every queued ray's hit. The random numbers of all vertices are drawn first, in one
@@ -57,8 +148,7 @@ pub fn shade(
 ) -> u64 {
     let layout = ctx.integrator.plan_draws(ctx, depth, draws);
     draws.draw(ctx.sampler, &mut paths.sampler, &rays.path);
-    let lanes_apply =
-        ctx.shading_lanes && depth < ctx.max_depth && ctx.integrator.shades_diffuse_in_lanes(ctx);
+    let lanes_apply = ctx.shading_lanes && lanes_can_apply(ctx, depth);
     // Only where the normals outgrow the L2 cache: small scenes keep them there, and the
     // prefetch pass cost CBspheres_lambertian 1.7% more instructions.
     let prefetch = std::mem::size_of_val(ctx.triangle_normals) > accel::l2_cache_bytes();
@@ -193,5 +283,40 @@ fn lane_albedo(lanes_apply: bool, material: &Material) -> Option<Vec3> {
     match *material {
         Material::Diffuse { albedo } => Some(albedo),
         _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Ray;
+
+    #[test]
+    fn specular_entries_move_behind_the_others_in_queue_order() {
+        let (n, specular) = (40usize, [3usize, 17, 18, 39]);
+        let mut rays = RayQueue::default();
+        for path in 0..n as u32 {
+            rays.push(Ray::new(Vec3::new(path as f32, 0.0, 0.0), Vec3::Z), path);
+        }
+        let mut hits: Vec<Option<Hit>> =
+            (0..n as u32).map(|p| Some(Hit { t: 1.0, u: 0.0, v: 0.0, prim: p })).collect();
+        let mut masks = vec![0u32; n.div_ceil(LANES)];
+        for &i in &specular {
+            masks[i / LANES] |= 1 << (i % LANES);
+        }
+        // Three chunks hold one, where grouped they would take one: it pays.
+        assert!(grouping_pays(&masks));
+        let (mut moved, mut moved_hits) = (RayQueue::default(), Vec::new());
+        move_specular_last(&masks, &mut rays, &mut hits, &mut moved, &mut moved_hits);
+        let others = (0..n as u32).filter(|p| !specular.contains(&(*p as usize)));
+        let want: Vec<u32> = others.chain(specular.iter().map(|&i| i as u32)).collect();
+        assert_eq!(rays.path, want);
+        let origins: Vec<u32> = rays.rays.iter().map(|r| r.origin.x as u32).collect();
+        assert_eq!(origins, want);
+        assert_eq!(hits.iter().map(|h| h.unwrap().prim).collect::<Vec<_>>(), want);
+        // Already grouped (a full chunk and one entry after it), or none: nothing to gain.
+        assert!(!grouping_pays(&[0, 0xffff, 1]));
+        assert!(!grouping_pays(&[0, 0, 0]));
+        assert!(!grouping_pays(&[1 << 15, 1]));
     }
 }
