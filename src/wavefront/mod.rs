@@ -23,6 +23,11 @@
 //! the emitters first and test occlusion only up to the front face they find
 //! (`stages::extend_to_emitters`, `integrator::EmitterAccel`).
 //!
+//! Where the scene mixes specular surfaces (mirror, glass, refraction) with light-sampling
+//! ones, the queue's specular vertices then move behind the others (`stages::group_specular`),
+//! so that chunks of either kind run only their own code (specular lanes sample no lights),
+//! and the rays they queue stay together at the next depth; the image does not change.
+//!
 //! Shading a queue (`stages::shade`) starts with one pass that draws every random number its
 //! vertices may use (`sampler::DrawBatch`, vectorised). Then the queue goes by in chunks of 16:
 //! surface vertices (under MIS, where the emitters are triangles) are shaded together in SIMD
