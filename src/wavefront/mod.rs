@@ -427,8 +427,10 @@ fn trace_sample_batch(
         });
         let queued = ws.rays.len();
         timed(ctx.stage_times, &mut times.shade, || {
-            stages::drop_misses(&mut ws.rays, &mut ws.hits);
-            stages::group_specular(ctx, depth, &mut ws.rays, &mut ws.hits, &mut ws.shade);
+            // Misses out, and specular vertices behind the others where that pays: one pass.
+            if !stages::group_specular(ctx, depth, &mut ws.rays, &mut ws.hits, &mut ws.shade) {
+                stages::drop_misses(&mut ws.rays, &mut ws.hits);
+            }
             ws.next_rays.clear();
             ws.shadow.clear();
             ws.probes.clear();

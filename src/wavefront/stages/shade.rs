@@ -54,16 +54,18 @@ fn lanes_can_apply(ctx: &RenderContext, depth: u32) -> bool {
 /// for all its lanes if one is specular, and samples lights for all if one is not: on CBgems
 /// two chunks in three held both. Queue order only decides which vertices share a chunk or a
 /// packet; a path's numbers, hits and sums do not depend on it, so the image does not change.
+/// The same pass drops the misses, as `drop_misses` does; returns whether it ran (if not, the
+/// misses are still in the queue).
 pub fn group_specular(
     ctx: &RenderContext,
     depth: u32,
     rays: &mut RayQueue,
     hits: &mut Vec<Option<Hit>>,
     scratch: &mut ShadeScratch,
-) {
+) -> bool {
     // Not asked of `shading_lanes`: vertices shaded one by one (for tests) see the same queues.
     if !ctx.mixes_specular || !lanes_can_apply(ctx, depth) {
-        return;
+        return false;
     }
     let scene = ctx.scene;
     let specular = |h: &Option<Hit>| {
@@ -76,9 +78,10 @@ pub fn group_specular(
         chunk.iter().enumerate().fold(0u32, |m, (i, h)| m | (specular(h) as u32) << i)
     }));
     if !grouping_pays(masks) {
-        return;
+        return false;
     }
     move_specular_last(masks, rays, hits, &mut scratch.specular_rays, &mut scratch.specular_hits);
+    true
 }
 
 /// Whether grouping would leave fewer chunks holding a specular vertex (`masks`: each chunk's
@@ -90,7 +93,9 @@ fn grouping_pays(masks: &[u32]) -> bool {
 }
 
 /// Moves the entries that `masks` marks (bit `i` of `masks[c]`: entry `c * LANES + i`) behind
-/// the others, each group in queue order; `moved` and `moved_hits` are scratch space.
+/// the others, each group in queue order, and drops the misses (`hits[i]` is `None`, never
+/// marked); `moved` and `moved_hits` are scratch space. One pass for both: the misses' own
+/// pass moved the queue a second time.
 fn move_specular_last(
     masks: &[u32],
     rays: &mut RayQueue,
@@ -105,6 +110,8 @@ fn move_specular_last(
     moved_hits.reserve(count);
     let n = hits.len();
     let first_chunk = masks.iter().position(|&m| m != 0).unwrap_or(masks.len());
+    let first_miss = hits.iter().position(Option::is_none).unwrap_or(n);
+    let first_chunk = first_chunk.min(first_miss / LANES);
     let (queued, paths) = (&mut rays.rays[..n], &mut rays.path[..n]);
     let mut kept = first_chunk * LANES;
     for (c, &mask) in masks.iter().enumerate().skip(first_chunk) {
@@ -112,7 +119,7 @@ fn move_specular_last(
             if mask >> (i - c * LANES) & 1 != 0 {
                 moved.push(queued[i], paths[i]);
                 moved_hits.push(hits[i]);
-            } else {
+            } else if hits[i].is_some() {
                 // `kept <= i < n`: said, so that the writes need no bounds checks of their own.
                 let k = kept.min(i);
                 (queued[k], paths[k], hits[k]) = (queued[i], paths[i], hits[i]);
@@ -292,14 +299,16 @@ mod tests {
     use crate::math::Ray;
 
     #[test]
-    fn specular_entries_move_behind_the_others_in_queue_order() {
-        let (n, specular) = (40usize, [3usize, 17, 18, 39]);
+    fn specular_entries_move_behind_the_others_in_queue_order_and_misses_go() {
+        let (n, specular, misses) = (40usize, [3usize, 17, 18, 39], [1usize, 5, 30]);
         let mut rays = RayQueue::default();
         for path in 0..n as u32 {
             rays.push(Ray::new(Vec3::new(path as f32, 0.0, 0.0), Vec3::Z), path);
         }
-        let mut hits: Vec<Option<Hit>> =
-            (0..n as u32).map(|p| Some(Hit { t: 1.0, u: 0.0, v: 0.0, prim: p })).collect();
+        let hit = |p: u32| Some(Hit { t: 1.0, u: 0.0, v: 0.0, prim: p });
+        let mut hits: Vec<Option<Hit>> = (0..n as u32)
+            .map(|p| if misses.contains(&(p as usize)) { None } else { hit(p) })
+            .collect();
         let mut masks = vec![0u32; n.div_ceil(LANES)];
         for &i in &specular {
             masks[i / LANES] |= 1 << (i % LANES);
@@ -308,7 +317,8 @@ mod tests {
         assert!(grouping_pays(&masks));
         let (mut moved, mut moved_hits) = (RayQueue::default(), Vec::new());
         move_specular_last(&masks, &mut rays, &mut hits, &mut moved, &mut moved_hits);
-        let others = (0..n as u32).filter(|p| !specular.contains(&(*p as usize)));
+        let kept = |p: &u32| !specular.contains(&(*p as usize)) && !misses.contains(&(*p as usize));
+        let others = (0..n as u32).filter(kept);
         let want: Vec<u32> = others.chain(specular.iter().map(|&i| i as u32)).collect();
         assert_eq!(rays.path, want);
         let origins: Vec<u32> = rays.rays.iter().map(|r| r.origin.x as u32).collect();
