@@ -176,12 +176,25 @@ pub fn drop_misses(rays: &mut RayQueue, hits: &mut Vec<Option<Hit>>) {
     let Some(first) = hits.iter().position(Option::is_none) else {
         return;
     };
+    retain_from(rays, hits, first, |_, _, _, hit| hit.is_some());
+}
+
+/// Keeps the queue entries before `first` as they are and, of the others, those for which
+/// `keep(index, ray, path, hit)` holds, moved up in queue order; `keep` sees every entry from
+/// `first` on once, in order (`drop_misses`, `shade::group_specular`).
+#[inline(always)]
+pub(super) fn retain_from(
+    rays: &mut RayQueue,
+    hits: &mut Vec<Option<Hit>>,
+    first: usize,
+    mut keep: impl FnMut(usize, &Ray, u32, &Option<Hit>) -> bool,
+) {
     let n = hits.len();
     let (queued, paths) = (&mut rays.rays[..n], &mut rays.path[..n]);
     let mut kept = first;
-    for i in first + 1..n {
-        if hits[i].is_some() {
-            // `kept < i < n`: said, so that the writes need no bounds checks of their own.
+    for i in first..n {
+        if keep(i, &queued[i], paths[i], &hits[i]) {
+            // `kept <= i < n`: said, so that the writes need no bounds checks of their own.
             let k = kept.min(i);
             (queued[k], paths[k], hits[k]) = (queued[i], paths[i], hits[i]);
             kept += 1;

@@ -2,6 +2,7 @@
 //! the integrator.
 
 use super::super::{PathState, RayQueue, RenderContext, ShadeOutputs, Surface};
+use super::extend::retain_from;
 use crate::accel;
 use crate::geometry::prim;
 use crate::integrator::diffuse::{self, DiffuseLanes, DiffuseOutputs, LANES};
@@ -111,25 +112,15 @@ fn move_specular_last(
     let n = hits.len();
     let first_chunk = masks.iter().position(|&m| m != 0).unwrap_or(masks.len());
     let first_miss = hits.iter().position(Option::is_none).unwrap_or(n);
-    let first_chunk = first_chunk.min(first_miss / LANES);
-    let (queued, paths) = (&mut rays.rays[..n], &mut rays.path[..n]);
-    let mut kept = first_chunk * LANES;
-    for (c, &mask) in masks.iter().enumerate().skip(first_chunk) {
-        for i in c * LANES..((c + 1) * LANES).min(n) {
-            if mask >> (i - c * LANES) & 1 != 0 {
-                moved.push(queued[i], paths[i]);
-                moved_hits.push(hits[i]);
-            } else if hits[i].is_some() {
-                // `kept <= i < n`: said, so that the writes need no bounds checks of their own.
-                let k = kept.min(i);
-                (queued[k], paths[k], hits[k]) = (queued[i], paths[i], hits[i]);
-                kept += 1;
-            }
+    let first = (first_chunk * LANES).min(first_miss);
+    retain_from(rays, hits, first, |i, ray, path, hit| {
+        if masks[i / LANES] >> (i % LANES) & 1 != 0 {
+            moved.push(*ray, path);
+            moved_hits.push(*hit);
+            return false;
         }
-    }
-    rays.rays.truncate(kept);
-    rays.path.truncate(kept);
-    hits.truncate(kept);
+        hit.is_some()
+    });
     rays.rays.extend_from_slice(&moved.rays);
     rays.path.extend_from_slice(&moved.path);
     hits.extend_from_slice(moved_hits);
